@@ -70,7 +70,8 @@ def simulate_flexible_body(body: FlexibleBody, motion: FrameMotion, ts: Array, *
                            point_forces: PointForces | None = None, gravity=(0.0, 0.0),
                            stiffening=1.0, y0=None, rtol=1e-8, atol=1e-12,
                            solver: diffrax.AbstractSolver | None = None,
-                           max_steps: int = 1_000_000, throw: bool = True) -> FlexibleResponse:
+                           max_steps: int = 1_000_000, throw: bool = True,
+                           adjoint: diffrax.AbstractAdjoint | None = None) -> FlexibleResponse:
     """Integrate the elastic coordinates of ``body`` while its frame follows ``motion``.
 
     Args:
@@ -85,6 +86,11 @@ def simulate_flexible_body(body: FlexibleBody, motion: FrameMotion, ts: Array, *
         solver: a diffrax solver; ``diffrax.Tsit5()`` by default.
         max_steps: step budget (static).
         throw: raise on solver failure (set False under vmap and inspect ``result``).
+        adjoint: how to differentiate the solve; diffrax's ``RecursiveCheckpointAdjoint`` (reverse
+            mode) by default, ``diffrax.ForwardMode()`` for ``jax.jacfwd``/``jax.jvp``.
+
+    Python floats among the options (``stiffening``, ``rtol``, …) are compile-time constants;
+    pass arrays for values that change between calls, to avoid recompiling.
     """
     require_x64()
     ts = jnp.asarray(ts, dtype=float)
@@ -100,6 +106,7 @@ def simulate_flexible_body(body: FlexibleBody, motion: FrameMotion, ts: Array, *
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
         max_steps=max_steps, throw=throw,
+        adjoint=diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
     )
     q, qdot = sol.ys
     return FlexibleResponse(
