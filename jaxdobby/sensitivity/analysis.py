@@ -128,7 +128,8 @@ class SobolResult:
                 lines.append(f"  {'pair':<{w + u + 2}}  {'S2':>17}")
             for j, k in ix.pairs():
                 pair = f"{names[j]} × {names[k]}"
-                lines.append(f"  {pair:<{w + u + 2}}  {ix.S2[j, k]:8.4f} ± {ix.S2_conf[j, k]:6.4f}")
+                lines.append(f"  {pair:<{w + u + 2}}  {ix.S2[j, k]:8.4f} ± "
+                             f"{ix.S2_conf[j, k]:6.4f}")
         return "\n".join(lines)
 
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from collections.abc import Callable, Sequence
 
 import jax
@@ -121,7 +120,8 @@ def _check_outputs(out_info, chunk_size: int) -> None:
                             f"{getattr(v, 'shape', None)} for {chunk_size} samples")
         if k == STATUS:
             if not (jnp.issubdtype(v.dtype, jnp.bool_) or jnp.issubdtype(v.dtype, jnp.integer)):
-                raise TypeError(f"model output {STATUS!r} must be bool or an integer code; got {v.dtype}")
+                raise TypeError(f"model output {STATUS!r} must be bool or an integer code; "
+                                f"got {v.dtype}")
         elif not jnp.issubdtype(v.dtype, jnp.floating):
             raise TypeError(f"metric {k!r} must be a float; got {v.dtype}")
 

@@ -22,6 +22,7 @@ reads back its own finished chunks.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import os
 import sys
@@ -37,6 +38,7 @@ from .batch import Evaluation, Progress, evaluate
 from .failures import POLICIES, FailedSamplesError
 from .models import ISHIGAMI, ModelSpec
 from .plots import save_figures
+from .progress import ProgressBar
 from .space import ParameterSpace, check_base_samples
 from .store import ChunkStore, atomic_write, samples_digest, write_json
 
@@ -90,7 +92,8 @@ class SobolConfig:
     @classmethod
     def from_args(cls, ns: argparse.Namespace) -> "SobolConfig":
         """The config from parsed :func:`add_arguments` options."""
-        return cls(**{f.name: getattr(ns, f.name) for f in dataclasses.fields(cls) if hasattr(ns, f.name)})
+        return cls(**{f.name: getattr(ns, f.name) for f in dataclasses.fields(cls)
+                      if hasattr(ns, f.name)})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,7 +108,8 @@ class SobolRun:
     writer: bool
 
 
-def add_arguments(parser: argparse.ArgumentParser, models: Mapping[str, ModelSpec] = MODELS) -> None:
+def add_arguments(parser: argparse.ArgumentParser,
+                  models: Mapping[str, ModelSpec] = MODELS) -> None:
     """Add the ``sobol`` options to ``parser``."""
     env = os.environ.get
     a = parser.add_argument
@@ -129,8 +133,8 @@ def add_arguments(parser: argparse.ArgumentParser, models: Mapping[str, ModelSpe
     a("--num-processes", type=int, default=_int_env("JAXDOBBY_NUM_PROCESSES"),
       help="number of processes")
     a("--process-id", type=int, default=_int_env("JAXDOBBY_PROCESS_ID"), help="this process's id")
-    a("--model", choices=sorted(models), default="dobby" if "dobby" in models else sorted(models)[0],
-      help=argparse.SUPPRESS)
+    default_model = "dobby" if "dobby" in models else sorted(models)[0]
+    a("--model", choices=sorted(models), default=default_model, help=argparse.SUPPRESS)
 
 
 def _int_env(name: str) -> int | None:
@@ -160,9 +164,27 @@ def initialize_distributed(config: SobolConfig) -> None:
         raise ValueError("--coordinator, --num-processes and --process-id go together; got "
                          f"{fields}")
     if not 0 <= config.process_id < config.num_processes:
-        raise ValueError(f"--process-id must be in [0, {config.num_processes}); got {config.process_id}")
+        raise ValueError(f"--process-id must be in [0, {config.num_processes}); "
+                         f"got {config.process_id}")
     if not jax.distributed.is_initialized():
         jax.distributed.initialize(config.coordinator, config.num_processes, config.process_id)
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """Send what native code writes to file descriptor 1 to stderr meanwhile.
+
+    Gloo (JAX's CPU collectives) prints "[Gloo] Rank 0 is connected …" to stdout when the
+    processes first connect; stdout is kept for the results (``--json``).
+    """
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _everyone_ok(error: Exception | None) -> None:
@@ -170,7 +192,8 @@ def _everyone_ok(error: Exception | None) -> None:
     if jax.process_count() > 1:
         from jax.experimental import multihost_utils
 
-        flags = multihost_utils.process_allgather(np.int32(error is not None))
+        with _stdout_to_stderr():  # the first collective connects the processes
+            flags = multihost_utils.process_allgather(np.int32(error is not None))
         if error is None and np.any(flags):
             raise ValueError("another process refused the output directory (see its message)")
     if error is not None:
@@ -184,7 +207,8 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
     Args:
         config: the run's settings.
         model: the model; None looks ``config.model`` up in :data:`MODELS`.
-        progress: ``progress(done, total)`` rows of this process's share (e.g. :class:`ProgressBar`).
+        progress: ``progress(done, total)`` in rows of this process's share (e.g. a
+            :class:`ProgressBar`).
 
     Returns:
         The run; process 0 has written ``manifest.json``, ``chunks/``, ``outputs.npz``,
@@ -240,8 +264,9 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
                          conf_level=config.conf_level, seed=config.seed, run=run_info)
     except FailedSamplesError as e:
         if writer:
-            write_json(out / "failures.json", {"policy": config.on_failure, "count": len(e.failures),
-                       "failures": [dataclasses.asdict(f) for f in e.failures]})
+            write_json(out / "failures.json",
+                       {"policy": config.on_failure, "count": len(e.failures),
+                        "failures": [dataclasses.asdict(f) for f in e.failures]})
         raise
     if writer:
         files.append(write_json(out / "indices.json", result.to_dict()))
@@ -250,54 +275,6 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
         if config.figures:
             files += save_figures(result, out / "figures")
     return SobolRun(result, evaluation, space, out, tuple(files), writer)
-
-
-class ProgressBar:
-    """A one-line progress bar with samples/s and ETA, for ``progress=`` (CLI side: it prints).
-
-    The rate counts only the samples computed since the first call (compilation and chunks
-    read back on resume excluded).
-
-    Args:
-        stream: where to draw (default: ``sys.stderr`` at call time).
-        width: bar width in characters.
-        min_interval: least time between redraws [s] (the final one is always drawn).
-    """
-
-    def __init__(self, stream=None, width: int = 28, min_interval: float = 0.2):
-        self.stream, self.width, self.min_interval = stream, width, min_interval
-        self._t0 = self._done0 = None
-        self._last = -float("inf")
-
-    def __call__(self, done: int, total: int) -> None:
-        now = time.perf_counter()
-        if self._t0 is None:
-            self._t0, self._done0 = now, done
-        if done < total and now - self._last < self.min_interval:
-            return
-        self._last = now
-        stream = self.stream or sys.stderr
-        stream.write("\r" + self.line(done, total, now - self._t0, done - self._done0))
-        if done >= total:
-            stream.write("\n")
-        stream.flush()
-
-    def line(self, done: int, total: int, elapsed: float, computed: int) -> str:
-        """The bar's text for ``done`` of ``total`` after ``computed`` samples in ``elapsed`` s."""
-        frac = done / total if total else 1.0
-        fill = int(round(frac * self.width))
-        rate = computed / elapsed if elapsed > 0 and computed > 0 else None
-        eta = (total - done) / rate if rate else None
-        return (f"[{'#' * fill}{'.' * (self.width - fill)}] {done}/{total} samples {frac:4.0%}  "
-                f"{f'{rate:,.0f}' if rate else '-'} samples/s  ETA {_clock(eta)}")
-
-
-def _clock(seconds: float | None) -> str:
-    if seconds is None:
-        return "--:--"
-    m, s = divmod(int(round(seconds)), 60)
-    h, m = divmod(m, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m:02d}:{s:02d}"
 
 
 def main(argv: Sequence[str] | None = None, models: Mapping[str, ModelSpec] = MODELS) -> int:
@@ -320,5 +297,6 @@ def main(argv: Sequence[str] | None = None, models: Mapping[str, ModelSpec] = MO
             print(run.result.to_json())
         else:
             print(run.result.table())
-            print(f"\nwritten to {run.out}/: " + ", ".join(str(p.relative_to(run.out)) for p in run.files))
+            files = ", ".join(str(p.relative_to(run.out)) for p in run.files)
+            print(f"\nwritten to {run.out}/: {files}")
     return 0

@@ -67,9 +67,9 @@ def find_failures(outputs: Mapping[str, np.ndarray]) -> tuple[SampleFailure, ...
     for row in np.flatnonzero(bad):
         reasons = []
         if status is not None and status_bad[row]:
-            reasons.append(f"status ok={status[row]!r}" if status.dtype == np.bool_
+            reasons.append("status ok=False" if status.dtype == np.bool_
                            else f"status code {int(status[row])}")
-        nonfinite = [f"{k}={v[row]}" for k, v in metrics.items() if not np.isfinite(v[row])]
+        nonfinite = [f"{k}={float(v[row])}" for k, v in metrics.items() if not np.isfinite(v[row])]
         if nonfinite:
             reasons.append("non-finite metric(s): " + ", ".join(nonfinite))
         failures.append(SampleFailure(int(row), "; ".join(reasons)))
@@ -116,10 +116,11 @@ class FailureReport:
         """One sentence on how the indices were affected."""
         if not self.failures:
             return f"no failed samples; indices from all {self.n} base samples"
-        return (f"{len(self.failures)} failed sample(s) (rows {_short([f.row for f in self.failures])}); "
-                f"policy 'drop' left out {len(self.dropped_base_samples)} base sample(s) "
-                f"({_short(self.dropped_base_samples)}): indices from {self.n_used} of {self.n} base "
-                "samples, with wider intervals, and describing the model where it succeeds")
+        rows = _short([f.row for f in self.failures])
+        return (f"{len(self.failures)} failed sample(s) (rows {rows}); policy 'drop' left out "
+                f"{len(self.dropped_base_samples)} base sample(s) "
+                f"({_short(self.dropped_base_samples)}): indices from {self.n_used} of {self.n} "
+                "base samples, with wider intervals, and describing the model where it succeeds")
 
     def to_dict(self) -> dict:
         """JSON-ready form."""

@@ -19,7 +19,8 @@ from .store import atomic_write
 
 
 def _labels(result: SobolResult) -> list[str]:
-    return [f"{n}\n[{u}]" if u != "1" else n for n, u in zip(result.space.names, result.space.units)]
+    space = result.space
+    return [f"{n}\n[{u}]" if u != "1" else n for n, u in zip(space.names, space.units)]
 
 
 def bar_figure(result: SobolResult, metric: str) -> Figure:

@@ -65,7 +65,8 @@ def check_base_samples(n: int) -> int:
         ValueError: unless ``n`` is an integer power of two, ≥ 2.
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2 or n & (n - 1):
-        raise ValueError(f"n (base samples) must be a power of two >= 2 (2, 4, …, 1024, …); got {n!r}")
+        raise ValueError("n (base samples) must be a power of two >= 2 (2, 4, …, 1024, …); "
+                         f"got {n!r}")
     return int(n)
 
 
@@ -115,7 +116,8 @@ class ParameterSpace:
         )
 
     @classmethod
-    def from_names(cls, names: Sequence[str], registry: Mapping[str, ParameterSpec]) -> "ParameterSpace":
+    def from_names(cls, names: Sequence[str], registry: Mapping[str, ParameterSpec]
+                   ) -> "ParameterSpace":
         """A space over a subset of the registry's parameters, with their default bounds.
 
         Args:
@@ -177,7 +179,7 @@ class ParameterSpace:
 
     @property
     def problem(self) -> dict:
-        """SALib's problem dict: ``{"num_vars", "names", "bounds"}`` (bounds in the users' units)."""
+        """SALib's problem dict ``{"num_vars", "names", "bounds"}``, bounds in the users' units."""
         return {"num_vars": self.dim, "names": list(self.names),
                 "bounds": [list(b) for b in self.bounds]}
 

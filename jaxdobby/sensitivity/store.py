@@ -108,10 +108,11 @@ class ChunkStore:
             old = json.loads(path.read_text())
         except (OSError, ValueError) as e:
             raise ValueError(f"--resume: cannot read {str(path)!r}: {e}") from None
-        differ = sorted(k for k in set(old) | set(self.manifest) if old.get(k) != self.manifest.get(k))
+        new = self.manifest
+        differ = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
         if differ:
-            raise ValueError(f"--resume: the run in {str(self.directory)!r} differs from this one in "
-                             f"{differ} (e.g. {differ[0]}: stored {old.get(differ[0])!r}, now "
+            raise ValueError(f"--resume: the run in {str(self.directory)!r} differs from this one "
+                             f"in {differ} (e.g. {differ[0]}: stored {old.get(differ[0])!r}, now "
                              f"{self.manifest.get(differ[0])!r}); resume with the same settings "
                              "or choose another --out")
         for stale in self.chunk_dir.glob(".*.tmp"):  # left by a run killed mid-write
@@ -141,7 +142,7 @@ class ChunkStore:
         return atomic_write(self.chunk_path(index), lambda f: np.savez(f, **arrays))
 
     def read_chunk(self, index: int) -> tuple[tuple[int, int], dict[str, np.ndarray], int]:
-        """Read chunk ``index``: its rows ``(start, stop)``, outputs, and the process that wrote it."""
+        """Read chunk ``index``: its rows (start, stop), outputs, and the process that wrote it."""
         with np.load(self.chunk_path(index), allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
         start, stop = (int(v) for v in data.pop(_ROWS))
