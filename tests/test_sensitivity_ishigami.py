@@ -103,18 +103,28 @@ def test_written_results(reference_run):
     assert len(list((out / "chunks").glob("chunk-*.npz"))) == 33
 
 
-def test_one_trace_for_many_chunks():
-    # The per-chunk function is traced once and compiled once (AOT) however many chunks run.
-    traces = []
+def test_one_trace_and_one_compile_for_many_chunks():
+    # The per-chunk function is traced once and compiled once however many chunks run: the
+    # model's Python body runs once, and XLA reports one backend compilation.
+    traces, compiles = [], []
 
     def model(x):
         traces.append(1)
         return {"y": ishigami(x)}
 
+    def listener(name, seconds, **kwargs):
+        if name == "/jax/core/compile/backend_compile_duration":
+            compiles.append(seconds)
+
     space = ParameterSpace.from_names(["x1", "x2", "x3"], ISHIGAMI.parameters)
     x = space.sample(1024, second_order=False, seed=1)
-    ev = evaluate(model, x, chunk_size=CHUNK)
-    assert len(ev.computed_chunks) == 6 and len(traces) == 1
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        ev = evaluate(model, x, chunk_size=CHUNK)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert len(ev.computed_chunks) == 6  # 5120 rows: 5 full chunks and a padded one
+    assert len(traces) == 1 and len(compiles) == 1
 
 
 def failing_model(bad_nan, bad_status):

@@ -123,3 +123,17 @@ def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):
     assert main(["--model", "ishigami", "--n", "1000", "--out", str(tmp_path / "o")]) == 2
     assert "must be a power of two" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()  # nothing written for a refused run
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--chunk-size", "-5"], "chunk_size must be a positive multiple of the device count"),
+    (["--devices", "0"], "local device(s); got 0"),
+    (["--conf-level", "1.5"], "conf_level must be in (0, 1); got 1.5"),
+    (["--coordinator", "localhost:1"],
+     "--coordinator, --num-processes and --process-id go together"),
+])
+def test_cli_refuses_bad_run_settings_before_writing(tmp_path, capsys, args, expected):
+    out = tmp_path / "o"
+    assert main(["--model", "ishigami", "--out", str(out), *args]) == 2
+    assert expected in capsys.readouterr().err
+    assert not out.exists()

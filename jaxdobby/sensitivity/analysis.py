@@ -133,6 +133,14 @@ class SobolResult:
         return "\n".join(lines)
 
 
+def check_settings(*, num_resamples: int, conf_level: float) -> None:
+    """Raise ``ValueError`` unless num_resamples ≥ 2 and 0 < conf_level < 1."""
+    if not 0 < conf_level < 1:
+        raise ValueError(f"conf_level must be in (0, 1); got {conf_level}")
+    if num_resamples < 2:
+        raise ValueError(f"num_resamples must be >= 2; got {num_resamples}")
+
+
 def analyze(space: ParameterSpace, outputs: Mapping[str, np.ndarray], *, n: int,
             second_order: bool, on_failure: str = "raise", num_resamples: int = 100,
             conf_level: float = 0.95, seed: int | None = None,
@@ -157,10 +165,7 @@ def analyze(space: ParameterSpace, outputs: Mapping[str, np.ndarray], *, n: int,
     """
     from SALib.analyze import sobol  # SALib imports pandas: keep it off the import path
 
-    if not 0 < conf_level < 1:
-        raise ValueError(f"conf_level must be in (0, 1); got {conf_level}")
-    if num_resamples < 2:
-        raise ValueError(f"num_resamples must be >= 2; got {num_resamples}")
+    check_settings(num_resamples=num_resamples, conf_level=conf_level)
     step = space.rows_per_base_sample(second_order)
     metrics, report = apply_policy(outputs, n=n, rows_per_base_sample=step, policy=on_failure)
     result = {}

@@ -81,6 +81,13 @@ def local_devices(devices: int | Sequence[jax.Device] | None = None) -> list[jax
     return list(devices)
 
 
+def check_chunk_size(chunk_size: int, n_devices: int) -> None:
+    """Raise ``ValueError`` unless ``chunk_size`` is a positive multiple of ``n_devices``."""
+    if chunk_size < 1 or chunk_size % n_devices:
+        raise ValueError(f"chunk_size must be a positive multiple of the device count "
+                         f"({n_devices}); got {chunk_size}")
+
+
 def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence[jax.Device]):
     """The compiled per-chunk function: (C, D) float64 samples → dict of (C,) outputs.
 
@@ -93,9 +100,7 @@ def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence
     Returns:
         ``(compiled, sharding)``: the AOT-compiled function and the input sharding it expects.
     """
-    if chunk_size < 1 or chunk_size % len(devices):
-        raise ValueError(f"chunk_size must be a positive multiple of the device count "
-                         f"({len(devices)}); got {chunk_size}")
+    check_chunk_size(chunk_size, len(devices))
     mesh = jax.make_mesh((len(devices),), ("samples",), axis_types=(jax.sharding.AxisType.Auto,),
                          devices=devices)
     spec = PartitionSpec("samples")
@@ -171,12 +176,15 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = 512,
         progress(done, share)
 
     def finish(i, out):
+        nonlocal done
         a, b = rows[i]
         host = {k: np.asarray(v)[: b - a] for k, v in out.items()}
         if store is not None:
             store.write_chunk(i, (a, b), host, process=proc)
         results[i] = host
-        return b - a
+        done += b - a
+        if progress is not None:
+            progress(done, share)
 
     todo = [i for i in mine if i not in results]
     pending = None
@@ -187,16 +195,12 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = 512,
             x = np.concatenate([x, np.repeat(x[-1:], chunk_size - (b - a), axis=0)])
         out = compiled(jax.device_put(x, sharding))  # dispatched; runs while we store the last
         if pending is not None:
-            done += finish(*pending)
-            if progress is not None:
-                progress(done, share)
+            finish(*pending)
         pending = (i, out)
     if pending is not None:
-        done += finish(*pending)
-        if progress is not None:
-            progress(done, share)
+        finish(*pending)
 
-    outputs = _gather(results, mine, n_chunks, chunk_size, total, dtypes, proc, n_proc)
+    outputs = _gather(results, mine, n_chunks, chunk_size, total, dtypes, n_proc)
     return Evaluation(outputs, chunk_size, len(devs), n_proc, tuple(todo))
 
 
@@ -208,7 +212,7 @@ def _read(store: ChunkStore, i: int, rows: tuple[int, int], keys: list[str]):
     return data
 
 
-def _gather(results, mine, n_chunks, chunk_size, total, dtypes, proc, n_proc):
+def _gather(results, mine, n_chunks, chunk_size, total, dtypes, n_proc):
     """All chunks' outputs, in row order, on every process."""
     if n_proc == 1:
         return {k: np.concatenate([results[i][k] for i in range(n_chunks)]) for k in dtypes}

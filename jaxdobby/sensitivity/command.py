@@ -33,8 +33,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .analysis import SobolResult, analyze
-from .batch import Evaluation, Progress, evaluate
+from .analysis import SobolResult, analyze, check_settings
+from .batch import Evaluation, Progress, check_chunk_size, evaluate, local_devices
 from .failures import POLICIES, FailedSamplesError
 from .models import ISHIGAMI, ModelSpec
 from .plots import save_figures
@@ -120,7 +120,8 @@ def add_arguments(parser: argparse.ArgumentParser,
     a("--seed", type=int, default=0, help="seed of the sampling and bootstrap (default 0)")
     a("--out", default="sobol", help="output directory (default ./sobol)")
     a("--resume", action="store_true", help="continue the run in --out from its finished chunks")
-    a("--devices", type=int, default=None, help="local devices to use (default all)")
+    a("--devices", type=int, default=None, help="local devices to use (default all; on CPU, K "
+      "devices need XLA_FLAGS=--xla_force_host_platform_device_count=K)")
     a("--json", action="store_true", help="print the indices as JSON instead of a table")
     a("--chunk-size", type=int, default=None, help=f"rows per chunk (default {DEFAULT_CHUNK})")
     a("--on-failure", choices=POLICIES, default="raise", help="failed samples: 'raise' (default, "
@@ -129,10 +130,11 @@ def add_arguments(parser: argparse.ArgumentParser,
     a("--conf-level", type=float, default=0.95, help="confidence level (default 0.95)")
     a("--no-figures", dest="figures", action="store_false", help="do not write figures")
     a("--coordinator", default=env("JAXDOBBY_COORDINATOR"), help="HOST:PORT of process 0, to "
-      "run as one of several processes (jax.distributed)")
+      "run as one of several processes (jax.distributed; or $JAXDOBBY_COORDINATOR)")
     a("--num-processes", type=int, default=_int_env("JAXDOBBY_NUM_PROCESSES"),
-      help="number of processes")
-    a("--process-id", type=int, default=_int_env("JAXDOBBY_PROCESS_ID"), help="this process's id")
+      help="number of processes (or $JAXDOBBY_NUM_PROCESSES)")
+    a("--process-id", type=int, default=_int_env("JAXDOBBY_PROCESS_ID"), help="this process's id, 0 … P-1 "
+      "(or $JAXDOBBY_PROCESS_ID)")
     default_model = "dobby" if "dobby" in models else sorted(models)[0]
     a("--model", choices=sorted(models), default=default_model, help=argparse.SUPPRESS)
 
@@ -226,10 +228,12 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
     n = check_base_samples(config.n)
     if config.on_failure not in POLICIES:
         raise ValueError(f"on_failure must be one of {POLICIES}; got {config.on_failure!r}")
+    check_settings(num_resamples=config.num_resamples, conf_level=config.conf_level)
     space = build_space(config, model)
     initialize_distributed(config)
-    n_dev = len(jax.local_devices()) if config.devices is None else config.devices
+    n_dev = len(local_devices(config.devices))
     chunk = config.chunk_size or -(-DEFAULT_CHUNK // n_dev) * n_dev
+    check_chunk_size(chunk, n_dev)  # before anything is written
     samples = space.sample(n, second_order=config.second_order, seed=config.seed)
 
     out = Path(config.out)
@@ -264,9 +268,7 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
                          conf_level=config.conf_level, seed=config.seed, run=run_info)
     except FailedSamplesError as e:
         if writer:
-            write_json(out / "failures.json",
-                       {"policy": config.on_failure, "count": len(e.failures),
-                        "failures": [dataclasses.asdict(f) for f in e.failures]})
+            write_json(out / "failures.json", e.to_dict())
         raise
     if writer:
         files.append(write_json(out / "indices.json", result.to_dict()))

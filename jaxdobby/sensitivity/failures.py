@@ -88,10 +88,15 @@ class FailedSamplesError(RuntimeError):
     """Samples failed and the policy is ``"raise"``; ``.failures`` lists them."""
 
     def __init__(self, failures: tuple[SampleFailure, ...], total: int):
-        self.failures = failures
+        self.failures, self.total = failures, total
         super().__init__(
             f"{len(failures)} of {total} samples failed; no indices computed (policy 'raise'; "
             f"'drop' would estimate them without the failed base samples):\n{describe(failures)}")
+
+    def to_dict(self) -> dict:
+        """JSON-ready form: the failed rows and reasons."""
+        return {"policy": "raise", "count": len(self.failures), "samples": self.total,
+                "failures": _rows(self.failures)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,7 +130,7 @@ class FailureReport:
     def to_dict(self) -> dict:
         """JSON-ready form."""
         return {"policy": self.policy, "count": len(self.failures),
-                "failures": [{"row": f.row, "reason": f.reason} for f in self.failures],
+                "failures": _rows(self.failures),
                 "dropped_base_samples": list(self.dropped_base_samples),
                 "n": self.n, "n_used": self.n_used, "summary": self.summary}
 
@@ -167,6 +172,10 @@ def apply_policy(outputs: Mapping[str, np.ndarray], *, n: int, rows_per_base_sam
     keep[list(dropped)] = False
     kept = {k: v.reshape(n, rows_per_base_sample)[keep].reshape(-1) for k, v in metrics.items()}
     return kept, FailureReport(policy, failures, dropped, n, int(keep.sum()))
+
+
+def _rows(failures):
+    return [{"row": f.row, "reason": f.reason} for f in failures]
 
 
 def _short(values, limit: int = 8) -> str:
