@@ -40,6 +40,15 @@ def test_sample_matrix_shape_and_bounds(second_order, rows):
     x = space.sample(64, second_order=second_order, seed=5)
     assert x.shape == (64 * rows, 3) and x.dtype == np.float64
     assert np.all(x >= -math.pi) and np.all(x <= math.pi)
+    # Rows come grouped by base sample j as [A_j, AB_j^1..AB_j^D, (BA_j^1..BA_j^D), B_j], where
+    # AB_j^i is A_j with column i from B_j (Saltelli 2002): the layout SALib's analyze reads and
+    # the 'drop' failure policy relies on (it drops whole groups).
+    g = x.reshape(64, rows, 3)
+    a, b = g[:, 0], g[:, -1]
+    for i in range(3):
+        expected = a.copy()
+        expected[:, i] = b[:, i]
+        np.testing.assert_array_equal(g[:, 1 + i], expected)
     # Same seed, same design (resume relies on it); another seed, another design.
     np.testing.assert_array_equal(x, space.sample(64, second_order=second_order, seed=5))
     assert not np.array_equal(x, space.sample(64, second_order=second_order, seed=6))

@@ -1,4 +1,4 @@
-"""The ``jaxdobby sobol`` command: options, the run itself, and its progress bar.
+"""The ``jaxdobby sobol`` command: its options and the run itself.
 
 The CLI wires argparse to this module::
 
@@ -133,8 +133,8 @@ def add_arguments(parser: argparse.ArgumentParser,
       "run as one of several processes (jax.distributed; or $JAXDOBBY_COORDINATOR)")
     a("--num-processes", type=int, default=_int_env("JAXDOBBY_NUM_PROCESSES"),
       help="number of processes (or $JAXDOBBY_NUM_PROCESSES)")
-    a("--process-id", type=int, default=_int_env("JAXDOBBY_PROCESS_ID"), help="this process's id, 0 … P-1 "
-      "(or $JAXDOBBY_PROCESS_ID)")
+    a("--process-id", type=int, default=_int_env("JAXDOBBY_PROCESS_ID"),
+      help="this process's id, 0 … P-1 (or $JAXDOBBY_PROCESS_ID)")
     default_model = "dobby" if "dobby" in models else sorted(models)[0]
     a("--model", choices=sorted(models), default=default_model, help=argparse.SUPPRESS)
 
