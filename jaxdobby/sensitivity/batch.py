@@ -1,0 +1,236 @@
+"""Batched evaluation of a model over a whole sample matrix: chunks, devices, processes.
+
+``evaluate(model, samples)`` runs ``model`` (one sample row → dict of scalar metrics) on every
+row of ``samples``:
+
+* **Chunks.** Rows go through in chunks of a fixed size C; the last chunk is padded (with copies
+  of its last row; the padding's outputs are dropped), so every chunk has the same shape and the
+  per-chunk function is traced and compiled exactly once (ahead of time: a shape change would be
+  an error, never a silent recompilation). Only the per-sample metrics leave a chunk, so a model
+  that reduces its trajectory to metrics inside the solve keeps batch memory at C trajectories.
+  The next chunk is dispatched before the previous one's results are copied out and stored.
+* **Devices.** A chunk is split over the local devices with ``jax.shard_map`` over a 1-D mesh
+  (axis ``"samples"``; C must be a multiple of the device count); each device runs the vmapped
+  model on its C / devices rows. ``check_vma=False`` because models are loops (diffrax #735).
+  On CPU, several host devices need ``XLA_FLAGS=--xla_force_host_platform_device_count=K`` set
+  before JAX starts.
+* **Processes.** Under ``jax.distributed`` with P processes, chunk i belongs to process
+  i mod P. Every process computes its own chunks on its own devices (no communication during
+  the run), writes them to its store, and at the end the outputs of all chunks are exchanged
+  with ``multihost_utils.process_allgather``, so every process returns the whole result. All
+  processes must call ``evaluate`` with the same model, samples and chunk size.
+* **Store.** With a :class:`~jaxdobby.sensitivity.store.ChunkStore`, each finished chunk is
+  written atomically; chunks already in the store are read instead of computed (resume).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import NamedSharding, PartitionSpec
+
+from .._x64 import require_x64
+from .failures import STATUS, SampleFailure, find_failures
+from .store import ChunkStore
+
+Progress = Callable[[int, int], None]
+"""``progress(done, total)``: rows of this process's share finished so far, out of ``total``."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Evaluation:
+    """Model outputs for every row of a sample matrix.
+
+    Attributes:
+        outputs: per-row arrays of shape (M,): the metrics, and ``"ok"`` if the model returns it.
+        chunk_size: rows per chunk C.
+        devices: local devices each process used.
+        processes: number of processes that shared the chunks.
+        computed_chunks: chunks computed by this call on this process (the rest came from the
+            store or from other processes).
+    """
+
+    outputs: dict[str, np.ndarray]
+    chunk_size: int
+    devices: int
+    processes: int
+    computed_chunks: tuple[int, ...]
+
+    @property
+    def failures(self) -> tuple[SampleFailure, ...]:
+        """Failed rows (``"ok"`` false or any metric non-finite), with reasons."""
+        return find_failures(self.outputs)
+
+
+def local_devices(devices: int | Sequence[jax.Device] | None = None) -> list[jax.Device]:
+    """Resolve a device choice: None → all local devices, k → the first k, or a list as is."""
+    available = jax.local_devices()
+    if devices is None:
+        return available
+    if isinstance(devices, int):
+        if not 1 <= devices <= len(available):
+            raise ValueError(
+                f"devices must be between 1 and the {len(available)} local device(s); got {devices}"
+                " (on CPU, set XLA_FLAGS=--xla_force_host_platform_device_count=K before start)")
+        return available[:devices]
+    return list(devices)
+
+
+def check_chunk_size(chunk_size: int, n_devices: int) -> None:
+    """Raise ``ValueError`` unless ``chunk_size`` is a positive multiple of ``n_devices``."""
+    if chunk_size < 1 or chunk_size % n_devices:
+        raise ValueError(f"chunk_size must be a positive multiple of the device count "
+                         f"({n_devices}); got {chunk_size}")
+
+
+def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence[jax.Device]):
+    """The compiled per-chunk function: (C, D) float64 samples → dict of (C,) outputs.
+
+    Args:
+        model: one row (D,) → dict of scalar outputs.
+        chunk_size: rows per chunk C, a multiple of ``len(devices)``.
+        dim: columns D.
+        devices: local devices of the 1-D mesh.
+
+    Returns:
+        ``(compiled, sharding)``: the AOT-compiled function and the input sharding it expects.
+    """
+    check_chunk_size(chunk_size, len(devices))
+    mesh = jax.make_mesh((len(devices),), ("samples",), axis_types=(jax.sharding.AxisType.Auto,),
+                         devices=devices)
+    spec = PartitionSpec("samples")
+    sharded = jax.shard_map(jax.vmap(model), mesh=mesh, in_specs=spec, out_specs=spec,
+                            check_vma=False)
+    sharding = NamedSharding(mesh, spec)
+    arg = jax.ShapeDtypeStruct((chunk_size, dim), jnp.float64, sharding=sharding)
+    compiled = jax.jit(sharded).lower(arg).compile()
+    _check_outputs(compiled.out_info, chunk_size)
+    return compiled, sharding
+
+
+def _check_outputs(out_info, chunk_size: int) -> None:
+    if not isinstance(out_info, dict) or not out_info:
+        raise TypeError("the model must return a non-empty dict of scalar metrics; got "
+                        f"{jax.tree.structure(out_info)}")
+    for k, v in out_info.items():
+        if not isinstance(k, str) or k.startswith("__"):
+            raise TypeError(f"model output names must be strings not starting with '__'; got {k!r}")
+        if not hasattr(v, "shape") or v.shape != (chunk_size,):
+            raise TypeError(f"model output {k!r} must be a scalar per sample; got shape "
+                            f"{getattr(v, 'shape', None)} for {chunk_size} samples")
+        if k == STATUS:
+            if not (jnp.issubdtype(v.dtype, jnp.bool_) or jnp.issubdtype(v.dtype, jnp.integer)):
+                raise TypeError(f"model output {STATUS!r} must be bool or an integer code; "
+                                f"got {v.dtype}")
+        elif not jnp.issubdtype(v.dtype, jnp.floating):
+            raise TypeError(f"metric {k!r} must be a float; got {v.dtype}")
+
+
+def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = 512,
+             devices: int | Sequence[jax.Device] | None = None, store: ChunkStore | None = None,
+             progress: Progress | None = None) -> Evaluation:
+    """Evaluate ``model`` on every row of ``samples`` (see the module docstring).
+
+    Args:
+        model: pure JAX function of one row (D,) [users' units] → dict of scalar metrics, plus
+            an optional ``"ok"`` status (bool, or integer code with 0 = success).
+        samples: (M, D) float64 sample matrix.
+        chunk_size: rows per chunk C, a multiple of the number of local devices used.
+        devices: local devices to shard each chunk over: None (all), a count, or a list.
+        store: where finished chunks are written and read back on resume; must be created
+            (``prepare`` + ``create``) by the caller.
+        progress: called with (rows done, rows in this process's share) once at the start and
+            after each finished chunk.
+
+    Returns:
+        The outputs of every row, identical on every process.
+    """
+    require_x64()
+    samples = np.ascontiguousarray(samples, dtype=np.float64)
+    if samples.ndim != 2 or not samples.shape[0]:
+        raise ValueError(f"samples must be a non-empty (M, D) matrix; got shape {samples.shape}")
+    if not np.all(np.isfinite(samples)):
+        raise ValueError("samples must be finite")
+    total, dim = samples.shape
+    devs = local_devices(devices)
+    compiled, sharding = chunk_function(model, chunk_size, dim, devs)
+    dtypes = {k: np.dtype(v.dtype) for k, v in compiled.out_info.items()}
+    n_chunks = math.ceil(total / chunk_size)
+    proc, n_proc = jax.process_index(), jax.process_count()
+    mine = list(range(proc, n_chunks, n_proc))
+    rows = {i: (i * chunk_size, min((i + 1) * chunk_size, total)) for i in mine}
+    share = sum(b - a for a, b in rows.values())
+
+    results: dict[int, dict[str, np.ndarray]] = {}
+    stored = store.finished() if store is not None else set()
+    for i in mine:
+        if i in stored:
+            results[i] = _read(store, i, rows[i], list(dtypes))
+    done = sum(rows[i][1] - rows[i][0] for i in results)
+    if progress is not None:
+        progress(done, share)
+
+    def finish(i, out):
+        nonlocal done
+        a, b = rows[i]
+        host = {k: np.asarray(v)[: b - a] for k, v in out.items()}
+        if store is not None:
+            store.write_chunk(i, (a, b), host, process=proc)
+        results[i] = host
+        done += b - a
+        if progress is not None:
+            progress(done, share)
+
+    todo = [i for i in mine if i not in results]
+    pending = None
+    for i in todo:
+        a, b = rows[i]
+        x = samples[a:b]
+        if b - a < chunk_size:
+            x = np.concatenate([x, np.repeat(x[-1:], chunk_size - (b - a), axis=0)])
+        out = compiled(jax.device_put(x, sharding))  # dispatched; runs while we store the last
+        if pending is not None:
+            finish(*pending)
+        pending = (i, out)
+    if pending is not None:
+        finish(*pending)
+
+    outputs = _gather(results, mine, n_chunks, chunk_size, total, dtypes, n_proc)
+    return Evaluation(outputs, chunk_size, len(devs), n_proc, tuple(todo))
+
+
+def _read(store: ChunkStore, i: int, rows: tuple[int, int], keys: list[str]):
+    got_rows, data, _ = store.read_chunk(i)
+    if got_rows != rows or sorted(data) != sorted(keys):
+        raise ValueError(f"{store.chunk_path(i)} holds rows {got_rows} and outputs {sorted(data)}; "
+                         f"expected rows {rows} and outputs {sorted(keys)}: not this run's chunk")
+    return data
+
+
+def _gather(results, mine, n_chunks, chunk_size, total, dtypes, n_proc):
+    """All chunks' outputs, in row order, on every process."""
+    if n_proc == 1:
+        return {k: np.concatenate([results[i][k] for i in range(n_chunks)]) for k in dtypes}
+    from jax.experimental import multihost_utils
+
+    # Every process sends (slots, C) per output, chunk i in slot i // P of process i mod P;
+    # bools travel as int8.
+    slots = math.ceil(n_chunks / n_proc)
+    local = {}
+    for k, dtype in dtypes.items():
+        buf = np.zeros((slots, chunk_size), dtype=np.int8 if dtype == np.bool_ else dtype)
+        for i in mine:
+            buf[i // n_proc, : len(results[i][k])] = results[i][k]
+        local[k] = buf
+    everyone = multihost_utils.process_allgather(local)
+    out = {}
+    for k, dtype in dtypes.items():
+        full = np.asarray(everyone[k])
+        rows = np.concatenate([full[i % n_proc, i // n_proc] for i in range(n_chunks)])
+        out[k] = rows[:total].astype(dtype)
+    return out

@@ -1,0 +1,304 @@
+"""The ``jaxdobby sobol`` command: its options and the run itself.
+
+The CLI wires argparse to this module::
+
+    parser = subparsers.add_parser("sobol", help="Sobol sensitivity indices")
+    add_arguments(parser, MODELS)
+    ...
+    jax.config.update("jax_enable_x64", True)
+    run = run_sobol(SobolConfig.from_args(ns), MODELS[ns.model], progress=ProgressBar())
+
+or simply calls :func:`main` (``python -m jaxdobby.sensitivity`` does).
+
+Several processes or hosts: start the same command once per process with
+``--coordinator HOST:PORT --num-processes P --process-id I`` (or the environment variables
+``JAXDOBBY_COORDINATOR``, ``JAXDOBBY_NUM_PROCESSES``, ``JAXDOBBY_PROCESS_ID``), all with the same
+``--out`` (a shared directory, or the same path on each host). Process I computes chunks
+I, I + P, I + 2P, … and writes them; the outputs are then exchanged (``process_allgather``),
+and process 0 analyses and writes the indices and figures. ``--resume`` works per process: each
+reads back its own finished chunks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import os
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from .analysis import SobolResult, analyze, check_settings
+from .batch import Evaluation, Progress, check_chunk_size, evaluate, local_devices
+from .failures import POLICIES, FailedSamplesError
+from .models import ISHIGAMI, ModelSpec
+from .plots import save_figures
+from .progress import ProgressBar
+from .space import ParameterSpace, check_base_samples
+from .store import ChunkStore, atomic_write, samples_digest, write_json
+
+MODELS: dict[str, ModelSpec] = {"ishigami": ISHIGAMI}
+"""Models ``--model`` can name; the dobby model registers itself here as ``"dobby"``."""
+
+DEFAULT_CHUNK = 512
+"""Default rows per chunk (rounded up to a multiple of the device count)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class SobolConfig:
+    """Settings of a Sobol run (the ``jaxdobby sobol`` options).
+
+    Attributes:
+        n: base samples N (power of two); the model runs N(D+2), or N(2D+2) with second order.
+        params: the parameters: None (the model's default problem), names (a list or
+            comma-separated), or the path of a TOML problem file (see ``space.py``).
+        second_order: also estimate pair indices S2.
+        seed: seed of the Sobol' scrambling and of the bootstrap.
+        out: output directory.
+        resume: continue the run in ``out`` from its finished chunks.
+        devices: local devices to use (None: all).
+        json: the CLI prints JSON instead of a table.
+        chunk_size: rows per chunk (None: 512 rounded up to a multiple of the devices).
+        model: name of the model in :data:`MODELS`.
+        on_failure: failed-sample policy, ``"raise"`` or ``"drop"`` (see ``failures.py``).
+        num_resamples, conf_level: bootstrap resamples and level of the intervals.
+        figures: write the figures.
+        coordinator, num_processes, process_id: ``jax.distributed`` settings (all or none).
+    """
+
+    n: int = 1024
+    params: str | Sequence[str] | None = None
+    second_order: bool = False
+    seed: int = 0
+    out: str | os.PathLike = "sobol"
+    resume: bool = False
+    devices: int | None = None
+    json: bool = False
+    chunk_size: int | None = None
+    model: str = "dobby"
+    on_failure: str = "raise"
+    num_resamples: int = 100
+    conf_level: float = 0.95
+    figures: bool = True
+    coordinator: str | None = None
+    num_processes: int | None = None
+    process_id: int | None = None
+
+    @classmethod
+    def from_args(cls, ns: argparse.Namespace) -> "SobolConfig":
+        """The config from parsed :func:`add_arguments` options."""
+        return cls(**{f.name: getattr(ns, f.name) for f in dataclasses.fields(cls)
+                      if hasattr(ns, f.name)})
+
+
+@dataclasses.dataclass(frozen=True)
+class SobolRun:
+    """What a run produced. ``result`` is on every process; files only on process 0."""
+
+    result: SobolResult
+    evaluation: Evaluation
+    space: ParameterSpace
+    out: Path
+    files: tuple[Path, ...]
+    writer: bool
+
+
+def add_arguments(parser: argparse.ArgumentParser,
+                  models: Mapping[str, ModelSpec] = MODELS) -> None:
+    """Add the ``sobol`` options to ``parser``."""
+    env = os.environ.get
+    a = parser.add_argument
+    a("--n", type=int, default=1024, help="base samples N, a power of two (default 1024)")
+    a("--params", default=None, help="parameters: comma-separated names (default: the model's "
+      "default problem) or a TOML problem file")
+    a("--second-order", action="store_true", help="also estimate pair indices S2")
+    a("--seed", type=int, default=0, help="seed of the sampling and bootstrap (default 0)")
+    a("--out", default="sobol", help="output directory (default ./sobol)")
+    a("--resume", action="store_true", help="continue the run in --out from its finished chunks")
+    a("--devices", type=int, default=None, help="local devices to use (default all; on CPU, K "
+      "devices need XLA_FLAGS=--xla_force_host_platform_device_count=K)")
+    a("--json", action="store_true", help="print the indices as JSON instead of a table")
+    a("--chunk-size", type=int, default=None, help=f"rows per chunk (default {DEFAULT_CHUNK})")
+    a("--on-failure", choices=POLICIES, default="raise", help="failed samples: 'raise' (default, "
+      "no indices) or 'drop' (leave out their base samples)")
+    a("--num-resamples", type=int, default=100, help="bootstrap resamples (default 100)")
+    a("--conf-level", type=float, default=0.95, help="confidence level (default 0.95)")
+    a("--no-figures", dest="figures", action="store_false", help="do not write figures")
+    a("--coordinator", default=env("JAXDOBBY_COORDINATOR"), help="HOST:PORT of process 0, to "
+      "run as one of several processes (jax.distributed; or $JAXDOBBY_COORDINATOR)")
+    a("--num-processes", type=int, default=_int_env("JAXDOBBY_NUM_PROCESSES"),
+      help="number of processes (or $JAXDOBBY_NUM_PROCESSES)")
+    a("--process-id", type=int, default=_int_env("JAXDOBBY_PROCESS_ID"),
+      help="this process's id, 0 … P-1 (or $JAXDOBBY_PROCESS_ID)")
+    default_model = "dobby" if "dobby" in models else sorted(models)[0]
+    a("--model", choices=sorted(models), default=default_model, help=argparse.SUPPRESS)
+
+
+def _int_env(name: str) -> int | None:
+    value = os.environ.get(name)
+    return None if value in (None, "") else int(value)
+
+
+def build_space(config: SobolConfig, model: ModelSpec) -> ParameterSpace:
+    """The parameter space the config asks for, checked against the model's registry."""
+    p = config.params
+    if p is None:
+        return ParameterSpace.from_names(model.default_names, model.parameters)
+    if isinstance(p, str) and (p.endswith(".toml") or os.path.isfile(p)):
+        return ParameterSpace.from_toml(p, model.parameters)
+    names = [s.strip() for s in p.split(",")] if isinstance(p, str) else list(p)
+    if not all(names):
+        raise ValueError(f"params: empty name in {p!r}; give comma-separated names or a .toml file")
+    return ParameterSpace.from_names(names, model.parameters)
+
+
+def initialize_distributed(config: SobolConfig) -> None:
+    """Join ``jax.distributed`` when the config names a coordinator (all three fields or none)."""
+    fields = (config.coordinator, config.num_processes, config.process_id)
+    if all(f is None for f in fields):
+        return
+    if any(f is None for f in fields):
+        raise ValueError("--coordinator, --num-processes and --process-id go together; got "
+                         f"{fields}")
+    if not 0 <= config.process_id < config.num_processes:
+        raise ValueError(f"--process-id must be in [0, {config.num_processes}); "
+                         f"got {config.process_id}")
+    if not jax.distributed.is_initialized():
+        jax.distributed.initialize(config.coordinator, config.num_processes, config.process_id)
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """Send what native code writes to file descriptor 1 to stderr meanwhile.
+
+    Gloo (JAX's CPU collectives) prints "[Gloo] Rank 0 is connected …" to stdout when the
+    processes first connect; stdout is kept for the results (``--json``).
+    """
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def _everyone_ok(error: Exception | None) -> None:
+    """Raise on every process if any process failed a check (so none waits at a barrier)."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        with _stdout_to_stderr():  # the first collective connects the processes
+            flags = multihost_utils.process_allgather(np.int32(error is not None))
+        if error is None and np.any(flags):
+            raise ValueError("another process refused the output directory (see its message)")
+    if error is not None:
+        raise error
+
+
+def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
+              progress: Progress | None = None) -> SobolRun:
+    """Run a Sobol study: sample, evaluate in chunks (resumable), analyse, write results.
+
+    Args:
+        config: the run's settings.
+        model: the model; None looks ``config.model`` up in :data:`MODELS`.
+        progress: ``progress(done, total)`` in rows of this process's share (e.g. a
+            :class:`ProgressBar`).
+
+    Returns:
+        The run; process 0 has written ``manifest.json``, ``chunks/``, ``outputs.npz``,
+        ``indices.json``, ``indices.csv`` and ``figures/`` into ``config.out``.
+
+    Raises:
+        ValueError: bad settings, problem or output directory (a clear message).
+        FailedSamplesError: samples failed under ``on_failure="raise"``; process 0 has written
+            ``failures.json`` first.
+    """
+    if model is None:
+        if config.model not in MODELS:
+            raise ValueError(f"model must be one of {sorted(MODELS)}; got {config.model!r}")
+        model = MODELS[config.model]
+    n = check_base_samples(config.n)
+    if config.on_failure not in POLICIES:
+        raise ValueError(f"on_failure must be one of {POLICIES}; got {config.on_failure!r}")
+    check_settings(num_resamples=config.num_resamples, conf_level=config.conf_level)
+    space = build_space(config, model)
+    initialize_distributed(config)
+    n_dev = len(local_devices(config.devices))
+    chunk = config.chunk_size or -(-DEFAULT_CHUNK // n_dev) * n_dev
+    check_chunk_size(chunk, n_dev)  # before anything is written
+    samples = space.sample(n, second_order=config.second_order, seed=config.seed)
+
+    out = Path(config.out)
+    manifest = {"format": 1, "model": model.name, "problem": space.to_dict(), "n": n,
+                "seed": config.seed, "second_order": config.second_order, "chunk_size": chunk,
+                "rows": int(samples.shape[0]), "samples_sha256": samples_digest(samples)}
+    store = ChunkStore(out, manifest)
+    try:
+        store.prepare(config.resume)
+        error = None
+    except ValueError as e:
+        error = e
+    _everyone_ok(error)
+    store.create()
+
+    t0 = time.perf_counter()
+    evaluation = evaluate(model.build(space), samples, chunk_size=chunk, devices=config.devices,
+                          store=store, progress=progress)
+    seconds = time.perf_counter() - t0
+    writer = jax.process_index() == 0
+    files = []
+    if writer:
+        files.append(atomic_write(out / "outputs.npz", lambda f: np.savez(
+            f, samples=samples, **{f"output_{k}": v for k, v in evaluation.outputs.items()})))
+    run_info = {"model": model.name, "rows": int(samples.shape[0]), "chunk_size": chunk,
+                "devices": evaluation.devices, "processes": evaluation.processes,
+                "chunks_computed_here": len(evaluation.computed_chunks),
+                "evaluation_seconds": round(seconds, 3)}
+    try:
+        result = analyze(space, evaluation.outputs, n=n, second_order=config.second_order,
+                         on_failure=config.on_failure, num_resamples=config.num_resamples,
+                         conf_level=config.conf_level, seed=config.seed, run=run_info)
+    except FailedSamplesError as e:
+        if writer:
+            write_json(out / "failures.json", e.to_dict())
+        raise
+    if writer:
+        files.append(write_json(out / "indices.json", result.to_dict()))
+        text = result.to_csv()
+        files.append(atomic_write(out / "indices.csv", lambda f: f.write(text.encode())))
+        if config.figures:
+            files += save_figures(result, out / "figures")
+    return SobolRun(result, evaluation, space, out, tuple(files), writer)
+
+
+def main(argv: Sequence[str] | None = None, models: Mapping[str, ModelSpec] = MODELS) -> int:
+    """``jaxdobby sobol``: parse options, run, print the table (or JSON). Returns the exit code."""
+    parser = argparse.ArgumentParser(prog="jaxdobby sobol",
+                                     description="Sobol sensitivity indices of the model's metrics")
+    add_arguments(parser, models)
+    ns = parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)  # the CLI, not the library, sets float64
+    try:
+        run = run_sobol(SobolConfig.from_args(ns), models[ns.model], progress=ProgressBar())
+    except FailedSamplesError as e:
+        print(f"jaxdobby sobol: {e}", file=sys.stderr)
+        return 1
+    except (ValueError, FileNotFoundError) as e:
+        print(f"jaxdobby sobol: error: {e}", file=sys.stderr)
+        return 2
+    if run.writer:
+        if ns.json:
+            print(run.result.to_json())
+        else:
+            print(run.result.table())
+            files = ", ".join(str(p.relative_to(run.out)) for p in run.files)
+            print(f"\nwritten to {run.out}/: {files}")
+    return 0

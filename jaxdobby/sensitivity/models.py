@@ -1,0 +1,93 @@
+"""Models a Sobol study can run, and the registries of their parameters.
+
+A model plugs into the pipeline as a :class:`ModelSpec`: a registry of the parameters it lets a
+study vary (names, users' units, default bounds) and a ``build(space)`` factory returning
+``model(x) -> dict[str, Array]``, a pure JAX function of ONE sample row ``x`` (shape (D,),
+float64, users' units, columns in ``space.names`` order) that returns scalar metrics. It may also
+return an ``"ok"`` entry: a bool (True = success) or an integer code (0 = success, as diffrax's
+``RESULTS``); a sample with ok False / a nonzero code, or any non-finite metric, is a *failed
+sample*. The pipeline vmaps and jits ``model``; it must not raise at run time (solve with
+``throw=False`` and return the status instead).
+
+``ISHIGAMI`` is the test model (Ishigami & Homma 1990): f = sin x1 + a sin² x2 + b x3⁴ sin x1
+with x_i uniform on [−π, π]; its Sobol indices are known in closed form (Sobol' & Levitan 1999).
+``DOBBY_PARAMETERS`` is the registry of the dobby study of DESIGN.md §6 (speed 400–1200 r/min,
+warp force peak 345–1035 N, stroke 80–140 mm, arm thickness 6–8 mm); the dobby's ``build``
+comes with the dobby model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Mapping
+
+import jax.numpy as jnp
+from jax import Array
+
+from .space import ParameterSpace, ParameterSpec
+
+Model = Callable[[Array], dict[str, Array]]
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelSpec:
+    """A model as the Sobol pipeline sees it.
+
+    Attributes:
+        name: the model's name (recorded in the run's manifest; ``--model`` on the CLI).
+        parameters: registry of the parameters a study may vary.
+        default_names: the parameters of the default problem, in order.
+        build: ``build(space) -> model``; ``model(x)`` maps one sample row (D,) [users' units]
+            to a dict of scalar float64 metrics, plus an optional ``"ok"`` status.
+    """
+
+    name: str
+    parameters: Mapping[str, ParameterSpec]
+    default_names: tuple[str, ...]
+    build: Callable[[ParameterSpace], Model]
+
+
+def ishigami(x: Array, a: float = 7.0, b: float = 0.1) -> Array:
+    """The Ishigami function f = sin x1 + a sin² x2 + b x3⁴ sin x1 (dimensionless).
+
+    Args:
+        x: (x1, x2, x3), shape (3,) [rad].
+        a, b: the function's constants (7 and 0.1 in the usual benchmark).
+    """
+    return jnp.sin(x[0]) + a * jnp.sin(x[1]) ** 2 + b * x[2] ** 4 * jnp.sin(x[0])
+
+
+ISHIGAMI_PARAMETERS = {
+    f"x{i}": ParameterSpec(f"x{i}", unit="rad", bounds=(-math.pi, math.pi), description=f"x{i}")
+    for i in (1, 2, 3)
+}
+"""The Ishigami inputs x1, x2, x3, uniform on [−π, π] [rad]."""
+
+
+def _build_ishigami(space: ParameterSpace) -> Model:
+    # Parameters left out of the space are held at 0 [rad]; x[space.names.index(...)] picks
+    # the varied ones, as a model with a default parameter set would.
+    def model(x):
+        full = jnp.stack([x[space.names.index(n)] if n in space.names else jnp.zeros((), x.dtype)
+                          for n in ISHIGAMI_PARAMETERS])
+        return {"y": ishigami(full)}
+
+    return model
+
+
+ISHIGAMI = ModelSpec("ishigami", ISHIGAMI_PARAMETERS, ("x1", "x2", "x3"), _build_ishigami)
+"""Ishigami (a = 7, b = 0.1) as a Sobol model with one metric ``"y"``: the pipeline's test case."""
+
+
+DOBBY_PARAMETERS = {
+    "speed": ParameterSpec("speed", "r/min", (400.0, 1200.0), 2 * math.pi / 60, (0.0, math.inf),
+                           "loom (main-shaft) speed"),
+    "warp_force": ParameterSpec("warp_force", "N", (345.0, 1035.0), 1.0, (0.0, math.inf),
+                                "peak warp force on the heald frame"),
+    "stroke": ParameterSpec("stroke", "mm", (80.0, 140.0), 1e-3, (0.0, math.inf),
+                            "heald frame stroke (shedding distance)"),
+    "thickness": ParameterSpec("thickness", "mm", (6.0, 8.0), 1e-3, (0.0, math.inf),
+                               "bending-arm plate thickness"),
+}
+"""The dobby study's parameters and default bounds (DESIGN.md §6, 'Sobol intervals')."""
