@@ -132,7 +132,7 @@ def four_bar_output_angle(
 def four_bar_closes(
     input_angle, *, input_pivot, input_length, coupler_length, output_pivot, output_length
 ) -> Array:
-    """True where the four-bar can be assembled at this input angle (see :func:`circles_intersect`)."""
+    """True where the four-bar can be assembled at this input angle (:func:`circles_intersect`)."""
     input_angle = jnp.asarray(input_angle, dtype=float)
     tip = jnp.asarray(input_pivot) + input_length * jnp.stack(
         [jnp.cos(input_angle), jnp.sin(input_angle)], axis=-1
