@@ -52,15 +52,16 @@ import math
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
 from ._x64 import require_x64
 from .centreline import CentreLine
-from .linkage import circle_intersection, rocker_angle
+from .linkage import circle_intersection, circles_intersect, rocker_angle
 from .motion_laws import DEFAULT_MOTION_LAW, motion_law
 from .units import DEG, MM
 
-_ORIGIN = jnp.zeros(2)
+_ORIGIN = np.zeros(2)  # the arm pivot B0 (numpy: importing must not start a JAX backend)
 
 
 def _float_array(x) -> Array:
@@ -280,6 +281,20 @@ def blade_angle(linkage: DobbyLinkage, joint_position) -> Array:
         linkage.blade_pivot,
         linkage.blade_input_arm,
         linkage.blade_branch,
+    )
+
+
+def blade_reachable(linkage: DobbyLinkage, joint_position) -> Array:
+    """True where link 11 can reach the blade pin from P [m], ``(..., 2)`` (the loop closes).
+
+    Where it is False, :func:`blade_angle` returns the clamped (tangent) configuration — finite
+    but not a solution — so check this when P comes from a large deformation.
+    """
+    return circles_intersect(
+        linkage.blade_pivot,
+        linkage.blade_input_arm,
+        jnp.asarray(joint_position, dtype=float),
+        linkage.link11_length,
     )
 
 

@@ -23,6 +23,7 @@ from jaxdobby.kinematics import (
     DobbyLinkage,
     arm_angle_from_crank,
     blade_angle,
+    blade_reachable,
     dead_centres,
     heald_frame_height,
     heald_frame_height_from_arm,
@@ -248,8 +249,11 @@ def test_linkage_closes_over_the_cycle_and_detects_a_broken_one():
     q = LINKAGE.eccentric_axis + 0.03 * jnp.stack([jnp.cos(PHI), jnp.sin(PHI)], axis=-1)
     assert bool(jnp.all(circles_intersect(jnp.zeros(2), 0.08, q, LINKAGE.ring_link_length)))
     assert bool(jnp.all(circles_intersect(LINKAGE.blade_pivot, 0.16, p, LINKAGE.link11_length)))
-    # A 100 mm ring link cannot reach the arm joint for part of the crank turn.
+    assert bool(jnp.all(blade_reachable(LINKAGE, p)))
+    # A 100 mm ring link cannot reach the arm joint for part of the crank turn, and link 11
+    # (400 mm) cannot reach the blade pin (160 mm from D0) from 0.6 m beyond D0.
     assert not bool(jnp.all(circles_intersect(jnp.zeros(2), 0.08, q, 0.1)))
+    assert not bool(blade_reachable(LINKAGE, LINKAGE.blade_pivot + jnp.array([-0.6, 0.0])))
 
 
 # --- stroke --------------------------------------------------------------------------------------
