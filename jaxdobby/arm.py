@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._arrays import as_float, as_float_1d
 from .beam import Beam
 from .centreline import CentreLine
 from .supports import Supports
@@ -52,18 +53,16 @@ class ArmDesign(eqx.Module):
         n_arc_elements: elements along the arc (static; 5 in the source study's mesh).
     """
 
-    thickness: Array = eqx.field(converter=jnp.asarray, default=0.006)
-    depth: Array = eqx.field(converter=lambda x: jnp.atleast_1d(jnp.asarray(x, dtype=float)),
-                             default=0.040)
-    depth_arc_lengths: Array = eqx.field(
-        converter=lambda x: jnp.atleast_1d(jnp.asarray(x, dtype=float)), default=0.0)
-    straight_length: Array = eqx.field(converter=jnp.asarray, default=0.105)
-    arc_radius: Array = eqx.field(converter=jnp.asarray, default=0.400)
-    arc_angle: Array = eqx.field(converter=jnp.asarray, default=float(np.radians(13.75)))
-    tip_length: Array = eqx.field(converter=jnp.asarray, default=0.025)
-    ring_joint_arc_length: Array = eqx.field(converter=jnp.asarray, default=0.080)
-    youngs_modulus: Array = eqx.field(converter=jnp.asarray, default=2.07e11)
-    density: Array = eqx.field(converter=jnp.asarray, default=7800.0)
+    thickness: Array = eqx.field(converter=as_float, default=0.006)
+    depth: Array = eqx.field(converter=as_float_1d, default=0.040)
+    depth_arc_lengths: Array = eqx.field(converter=as_float_1d, default=0.0)
+    straight_length: Array = eqx.field(converter=as_float, default=0.105)
+    arc_radius: Array = eqx.field(converter=as_float, default=0.400)
+    arc_angle: Array = eqx.field(converter=as_float, default=float(np.radians(13.75)))
+    tip_length: Array = eqx.field(converter=as_float, default=0.025)
+    ring_joint_arc_length: Array = eqx.field(converter=as_float, default=0.080)
+    youngs_modulus: Array = eqx.field(converter=as_float, default=2.07e11)
+    density: Array = eqx.field(converter=as_float, default=7800.0)
     n_arc_elements: int = eqx.field(static=True, default=5)
 
     @property

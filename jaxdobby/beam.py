@@ -60,14 +60,14 @@ class Beam(eqx.Module):
     """
 
     centreline: CentreLine
-    node_arc_lengths: Array = eqx.field(converter=jnp.asarray)
-    thickness: Array = eqx.field(converter=jnp.asarray)
-    depth_arc_lengths: Array = eqx.field(converter=jnp.asarray)
-    depth: Array = eqx.field(converter=jnp.asarray)
-    youngs_modulus: Array = eqx.field(converter=jnp.asarray)
-    density: Array = eqx.field(converter=jnp.asarray)
-    point_masses: Array = eqx.field(converter=jnp.asarray)
-    point_inertias: Array = eqx.field(converter=jnp.asarray)
+    node_arc_lengths: Array
+    thickness: Array
+    depth_arc_lengths: Array
+    depth: Array
+    youngs_modulus: Array
+    density: Array
+    point_masses: Array
+    point_inertias: Array
     elements: tuple[tuple[int, int], ...] = eqx.field(static=True)
 
     def __init__(self, centreline, node_arc_lengths, thickness, depth, youngs_modulus, density,

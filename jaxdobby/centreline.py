@@ -24,6 +24,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jax import Array
 
+from ._arrays import as_float
+
 
 def _chord(sigma, kappa, heading):
     """Displacement along a segment of curvature ``kappa`` [1/m] over arc length ``sigma`` [m].
@@ -48,10 +50,10 @@ class CentreLine(eqx.Module):
         start_angle: heading of the chain at its start, from the body x axis [rad].
     """
 
-    lengths: Array = eqx.field(converter=jnp.asarray)
-    turns: Array = eqx.field(converter=jnp.asarray)
-    start: Array = eqx.field(converter=jnp.asarray)
-    start_angle: Array = eqx.field(converter=jnp.asarray)
+    lengths: Array = eqx.field(converter=as_float)
+    turns: Array = eqx.field(converter=as_float)
+    start: Array = eqx.field(converter=as_float)
+    start_angle: Array = eqx.field(converter=as_float)
 
     @classmethod
     def from_segments(

@@ -28,6 +28,8 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
+from ._arrays import as_float
+
 from .flexible_body import FlexibleBody
 
 S = jnp.array([[0.0, -1.0], [1.0, 0.0]])
@@ -65,7 +67,7 @@ class FrameMotion(eqx.Module):
 class ConstantSpin(FrameMotion):
     """Rotation at constant angular velocity ``rate`` [rad/s] about a fixed pivot."""
 
-    rate: Array = eqx.field(converter=jnp.asarray)
+    rate: Array = eqx.field(converter=as_float)
 
     def angle(self, t):
         return self.rate * t
@@ -78,8 +80,8 @@ class SpinUp(FrameMotion):
     smoothly from 0 to ``final_rate`` Ω [rad/s] over ``duration`` T [s] and stays there.
     """
 
-    final_rate: Array = eqx.field(converter=jnp.asarray)
-    duration: Array = eqx.field(converter=jnp.asarray)
+    final_rate: Array = eqx.field(converter=as_float)
+    duration: Array = eqx.field(converter=as_float)
 
     def angle(self, t):
         big_t, omega = self.duration, self.final_rate

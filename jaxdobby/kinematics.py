@@ -55,6 +55,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._arrays import as_float
 from ._x64 import require_x64
 from .centreline import CentreLine
 from .linkage import circle_intersection, circles_intersect, rocker_angle
@@ -62,16 +63,6 @@ from .motion_laws import DEFAULT_MOTION_LAW, motion_law
 from .units import DEG, MM
 
 _ORIGIN = np.zeros(2)  # the arm pivot B0 (numpy: importing must not start a JAX backend)
-
-
-def _float_array(x) -> Array:
-    """Field converter: a *strongly* typed float array.
-
-    ``jnp.asarray(0.03)`` is weakly typed; a weak leaf and a strong one (from ``jnp.asarray`` of
-    a NumPy value, or a traced batch) have different abstract types and would make a jitted
-    function retrace. Converting with an explicit dtype keeps every float field strong.
-    """
-    return jnp.asarray(x, dtype=float)
 
 
 def _rotate(angle, vector):
@@ -109,21 +100,21 @@ class DobbyLinkage(eqx.Module):
     """
 
     arm: CentreLine
-    eccentric_axis: Array = eqx.field(converter=_float_array)
-    eccentricity: Array = eqx.field(converter=_float_array)
-    ring_link_length: Array = eqx.field(converter=_float_array)
-    ring_joint_arc_length: Array = eqx.field(converter=_float_array)
-    link11_arc_length: Array = eqx.field(converter=_float_array)
-    link11_length: Array = eqx.field(converter=_float_array)
-    blade_pivot: Array = eqx.field(converter=_float_array)
-    blade_input_arm: Array = eqx.field(converter=_float_array)
-    blade_output_arm: Array = eqx.field(converter=_float_array)
-    blade_output_offset: Array = eqx.field(converter=_float_array)
-    tumbler_length: Array = eqx.field(converter=_float_array)
-    frame_guide_x: Array = eqx.field(converter=_float_array)
-    slot_start: Array = eqx.field(converter=_float_array)
-    slot_end: Array = eqx.field(converter=_float_array)
-    dwell: Array = eqx.field(converter=_float_array)
+    eccentric_axis: Array = eqx.field(converter=as_float)
+    eccentricity: Array = eqx.field(converter=as_float)
+    ring_link_length: Array = eqx.field(converter=as_float)
+    ring_joint_arc_length: Array = eqx.field(converter=as_float)
+    link11_arc_length: Array = eqx.field(converter=as_float)
+    link11_length: Array = eqx.field(converter=as_float)
+    blade_pivot: Array = eqx.field(converter=as_float)
+    blade_input_arm: Array = eqx.field(converter=as_float)
+    blade_output_arm: Array = eqx.field(converter=as_float)
+    blade_output_offset: Array = eqx.field(converter=as_float)
+    tumbler_length: Array = eqx.field(converter=as_float)
+    frame_guide_x: Array = eqx.field(converter=as_float)
+    slot_start: Array = eqx.field(converter=as_float)
+    slot_end: Array = eqx.field(converter=as_float)
+    dwell: Array = eqx.field(converter=as_float)
     motion_law: str = eqx.field(static=True, default=DEFAULT_MOTION_LAW)
     ring_branch: int = eqx.field(static=True, default=-1)
     blade_branch: int = eqx.field(static=True, default=-1)

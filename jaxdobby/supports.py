@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._arrays import as_float
 from .beam import DOFS_PER_NODE, Beam
 
 
@@ -39,10 +40,9 @@ class Supports(eqx.Module):
     clamped: tuple[int, ...] = eqx.field(static=True, default=())
     pinned: tuple[int, ...] = eqx.field(static=True, default=())
     spring_nodes: tuple[int, ...] = eqx.field(static=True, default=())
-    spring_directions: Array = eqx.field(converter=lambda x: jnp.asarray(x, dtype=float).reshape(-1, 2),
+    spring_directions: Array = eqx.field(converter=lambda x: as_float(x).reshape(-1, 2),
                                          default=())
-    spring_stiffness: Array = eqx.field(converter=lambda x: jnp.asarray(x, dtype=float).reshape(-1),
-                                        default=())
+    spring_stiffness: Array = eqx.field(converter=lambda x: as_float(x).reshape(-1), default=())
 
     def free_dofs(self, n_nodes: int) -> np.ndarray:
         """Indices of the unconstrained DOFs (static numpy array)."""
