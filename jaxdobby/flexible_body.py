@@ -80,6 +80,11 @@ class FlexibleBody(eqx.Module):
         return self.frequencies.shape[0]
 
     @property
+    def frequencies_hz(self) -> Array:
+        """Natural frequencies of the supported beam [Hz]."""
+        return self.frequencies / (2.0 * jnp.pi)
+
+    @property
     def damping(self) -> Array:
         """Modal damping matrix 2ζ ω_i (mass-normalised modes) [1/s]."""
         return jnp.diag(2.0 * self.damping_ratio * self.frequencies)

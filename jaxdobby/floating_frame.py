@@ -108,7 +108,8 @@ def frame_state(motion: FrameMotion, t) -> FrameState:
 
 
 def kane_terms(body: FlexibleBody, frame: FrameState, q: Array, qdot: Array, *,
-               point_forces: Array | None = None, gravity=(0.0, 0.0), stiffening=1.0):
+               point_forces: Array | None = None, preload_forces: Array | None = None,
+               gravity=(0.0, 0.0), stiffening=1.0):
     """Generalised mass matrix and force of the flexible body: ``mass @ q̈ = force``.
 
     Args:
@@ -117,6 +118,9 @@ def kane_terms(body: FlexibleBody, frame: FrameState, q: Array, qdot: Array, *,
         q, qdot: modal coordinates and rates, shape (n_modes,).
         point_forces: inertial forces [N] at ``body.points``, shape (n_points, 2); they also
             stiffen the beam through ``body.point_stiffening``.
+        preload_forces: inertial forces [N] at ``body.points`` that enter the geometric
+            stiffness only (forces whose work is already accounted for elsewhere, e.g. a link
+            force transmitted through coupling terms), shape (n_points, 2).
         gravity: inertial gravity vector [m/s²].
         stiffening: factor s on the geometric stiffness (1 = on, 0 = off).
 
@@ -133,6 +137,8 @@ def kane_terms(body: FlexibleBody, frame: FrameState, q: Array, qdot: Array, *,
         local = point_forces @ a_t.T  # body-frame components, (n_points, 2)
         force = force + jnp.einsum("pck,pc->k", body.points, local)
         k_geo = k_geo + jnp.einsum("pckl,pc->kl", body.point_stiffening, local)
+    if preload_forces is not None:
+        k_geo = k_geo + jnp.einsum("pckl,pc->kl", body.point_stiffening, preload_forces @ a_t.T)
     stiffness = (body.stiffness - omega**2 * body.translational_mass + alpha * body.gyroscopic
                  + stiffening * k_geo)
     damping = body.damping + 2.0 * omega * body.gyroscopic
