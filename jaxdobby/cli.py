@@ -17,7 +17,10 @@ ends with one line naming the field and its valid range, and exit status 2.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import os
 import sys
+from pathlib import Path
 from collections.abc import Sequence
 
 from .errors import InputError
@@ -25,15 +28,96 @@ from .errors import InputError
 EXIT_BAD_INPUT = 2
 
 
-def _enable_x64() -> None:
+def _configure_jax() -> None:
+    """float64, and a persistent compilation cache so that later runs skip most compiling
+    (``JAXDOBBY_CACHE_DIR`` to move it, ``JAXDOBBY_CACHE_DIR=off`` to disable it)."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    cache = os.environ.get("JAXDOBBY_CACHE_DIR",
+                           str(Path.home() / ".cache" / "jaxdobby" / "xla"))
+    if cache.lower() != "off":
+        jax.config.update("jax_compilation_cache_dir", cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+FLAG_PARAMETERS = {"speed": "speed", "warp_force": "warp_force", "stroke": "stroke",
+                   "thickness": "thickness"}
+"""Command-line flags that set a model parameter (flag dest → registry name)."""
+
+
+def _add_model_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--speed", type=float, metavar="RPM", help="loom speed [r/min] (default 800)")
+    p.add_argument("--warp-force", type=float, metavar="N",
+                   help="peak warp force on the heald frame [N] (default 690)")
+    p.add_argument("--stroke", type=float, metavar="MM",
+                   help="heald-frame stroke [mm] (default 140; moves the link-11 joint)")
+    p.add_argument("--thickness", type=float, metavar="MM",
+                   help="plate thickness of the bending arm [mm] (default 6)")
+    p.add_argument("--modes", type=int, metavar="K", help="modes of the arm kept, 1-30 (default 4)")
+    p.add_argument("--coupling", choices=["two-way", "one-way"], help="default two-way")
+    p.add_argument("--warp-law", choices=["restoring", "opposing"], help="default restoring")
+    p.add_argument("--method", choices=["rk4", "adaptive"], help="integrator (default rk4)")
+    p.add_argument("--config", metavar="FILE.toml",
+                   help="configuration file (any model parameter; see README)")
+
+
+def setup_from_args(ns: argparse.Namespace):
+    """The (Setup, RunOptions) described by the config file and flags (flags win)."""
+    from .config import RunOptions, apply_checked, check_value, load
+    from .parameters import PARAMETERS, Setup
+
+    setup, options = load(ns.config) if ns.config else (Setup(), RunOptions())
+    values = {}
+    for dest, name in FLAG_PARAMETERS.items():
+        v = getattr(ns, dest)
+        if v is not None:
+            p = PARAMETERS[name]
+            values[name] = check_value(p, v, f"--{dest.replace('_', '-')}")[0] * p.scale
+    setup = apply_checked(setup, values)
+    changes = {}
+    if ns.modes is not None:
+        if not 1 <= ns.modes <= 30:
+            raise InputError(f"--modes = {ns.modes} is outside the valid range (an integer 1…30)")
+        changes["n_modes"] = ns.modes
+    for key in ("coupling", "warp_law"):
+        if getattr(ns, key) is not None:
+            changes[key] = getattr(ns, key)
+    if changes:
+        setup = dataclasses.replace(setup, machine=setup.machine.replace(**changes))
+    if ns.method is not None:
+        options.method = ns.method
+    return setup, options
+
+
+def _simulate(ns: argparse.Namespace) -> int:
+    from .report import dumps, summary_table, write_run
+    from .simulate import simulate, summary
+
+    setup, options = setup_from_args(ns)
+    _status("solving the periodic steady state (the first run compiles: up to a minute)...")
+    run = simulate(setup.machine, setup.operating, method=options.method, steps=options.steps)
+    result = summary(run)
+    if ns.out:
+        paths = write_run(ns.out, result, run.series, figures=not ns.no_figures)
+        _status(f"wrote {len(paths)} files to {ns.out}")
+    if ns.json:
+        print(dumps(result))
+    else:
+        print("jaxdobby simulate: periodic steady state of one heald-frame cycle\n")
+        print(summary_table(result))
+    return 0 if result["converged"] else 1
+
+
+def _status(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
 
 
 def _beam(ns: argparse.Namespace) -> int:
     from .report import beam_report
 
+    if not 1 <= ns.modes <= 30:
+        raise InputError(f"--modes = {ns.modes} is outside the valid range (an integer 1…30)")
     print(beam_report(n_modes=ns.modes))
     return 0
 
@@ -50,6 +134,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Differentiable simulator of the rigid-flexible lifting mechanism of a "
                     "rotary dobby.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sim = sub.add_parser("simulate", help="one steady-state run (the default machine by default)")
+    _add_model_arguments(sim)
+    sim.add_argument("--out", metavar="DIR", help="write summary.json, timeseries.csv, figures")
+    sim.add_argument("--json", action="store_true", help="print the summary as JSON")
+    sim.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
+    sim.set_defaults(run=_simulate)
     beam = sub.add_parser("beam", help="natural frequencies of the default bending arm")
     beam.add_argument("--modes", type=int, default=8, help="number of modes to list (1-30)")
     beam.set_defaults(run=_beam)
@@ -59,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``jaxdobby`` console script; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    _enable_x64()
+    _configure_jax()
     if argv and argv[0] == "sobol":
         return _sobol(argv[1:])
     parser = build_parser()

@@ -25,42 +25,12 @@ from typing import IO
 
 import numpy as np
 
+from ..io import atomic_write, write_json  # noqa: F401  (re-exported)
+
 MANIFEST = "manifest.json"
 CHUNKS = "chunks"
 _ROWS = "__rows__"  # reserved key of a chunk file: (start, stop) of its rows
 _PROCESS = "__process__"  # reserved key: the process that computed it (provenance)
-
-
-def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -> Path:
-    """Write a file atomically: ``write(f)`` into a temporary file, fsync, ``os.replace``.
-
-    Args:
-        path: the final path; its directory must exist.
-        write: called with a binary file object open for writing.
-    """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    dir_fd = os.open(path.parent, os.O_RDONLY)  # make the rename itself durable
-    try:
-        os.fsync(dir_fd)
-    finally:
-        os.close(dir_fd)
-    return path
-
-
-def write_json(path: str | os.PathLike, data) -> Path:
-    """Write ``data`` as indented JSON, atomically."""
-    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
-    return atomic_write(path, lambda f: f.write(text.encode()))
 
 
 def samples_digest(samples: np.ndarray) -> str:
