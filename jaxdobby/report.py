@@ -77,7 +77,7 @@ def timeseries_csv(series) -> str:
     cols += [(f"q{i + 1}", modal[:, i]) for i in range(modal.shape[1])]
     buf = io.StringIO()
     np.savetxt(buf, np.column_stack([c for _, c in cols]), delimiter=",",
-               header=",".join(n for n, _ in cols), comments="", fmt="%.10g")
+               header=",".join(n for n, _ in cols), comments="", fmt="%.15g")
     return buf.getvalue()
 
 
