@@ -109,6 +109,43 @@ def _simulate(ns: argparse.Namespace) -> int:
     return 0 if result["converged"] else 1
 
 
+def _sweep(ns: argparse.Namespace) -> int:
+    import json as _json
+
+    from .io import write_text
+    from .plots import overlay_figure, plt
+    from .sweep import STUDIES, csv_table, markdown_table, run_sweep, trend_figure
+
+    setup, options = setup_from_args(ns)
+    values = ns.values if ns.values else STUDIES.get(ns.parameter)
+    if values is None:
+        raise InputError(f"no default values for '{ns.parameter}': give them with --values")
+    _status(f"sweeping {ns.parameter} over {len(values)} values (the first run compiles)...")
+    result = run_sweep(setup, ns.parameter, values, method=options.method)
+    if ns.out:
+        out = Path(ns.out)
+        out.mkdir(parents=True, exist_ok=True)
+        write_text(out / "sweep.csv", csv_table(result))
+        write_text(out / "sweep.md", markdown_table(result))
+        label = lambda v: f"{result.parameter} = {v:g} {result.unit}".strip()  # noqa: E731
+        runs = {label(v): series for v, series in zip(result.values, result.series)}
+        for quantity in ("deviation", "velocity_deviation", "acceleration_flexible"):
+            fig = overlay_figure(runs, quantity, title=f"{quantity.replace('_', ' ')} by "
+                                                       f"{result.parameter}")
+            fig.savefig(out / f"sweep_{quantity}.png", dpi=120)
+            plt.close(fig)
+        fig = trend_figure(result)
+        fig.savefig(out / "sweep_trends.png", dpi=120)
+        plt.close(fig)
+        _status(f"wrote the table and figures to {out}")
+    if ns.json:
+        print(_json.dumps({"parameter": result.parameter, "unit": result.unit,
+                           "values": result.values, "runs": result.rows}, indent=2))
+    else:
+        print(markdown_table(result))
+    return 0 if all(r["converged"] for r in result.rows) else 1
+
+
 def _status(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
@@ -140,6 +177,19 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--json", action="store_true", help="print the summary as JSON")
     sim.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
     sim.set_defaults(run=_simulate)
+    sweep = sub.add_parser("sweep", help="one-at-a-time study of one parameter (vmapped)",
+                           description="Default values: modes 1-8; speed 400-1200 r/min; "
+                                       "warp_force 690 1380 2760 N; stroke 140 115 80 mm; "
+                                       "thickness 6 7 8 mm. Any parameter of the configuration "
+                                       "file can be swept with --values.")
+    sweep.add_argument("parameter", help="modes, speed, warp_force, stroke, thickness, or any "
+                                         "parameter name of the registry")
+    sweep.add_argument("--values", type=float, nargs="+", metavar="V",
+                       help="values in the parameter's unit (default: the source study's)")
+    _add_model_arguments(sweep)
+    sweep.add_argument("--out", metavar="DIR", help="write sweep.csv, sweep.md and figures")
+    sweep.add_argument("--json", action="store_true", help="print the rows as JSON")
+    sweep.set_defaults(run=_sweep)
     beam = sub.add_parser("beam", help="natural frequencies of the default bending arm")
     beam.add_argument("--modes", type=int, default=8, help="number of modes to list (1-30)")
     beam.set_defaults(run=_beam)

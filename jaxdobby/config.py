@@ -188,3 +188,34 @@ def to_toml(setup: Setup, options: RunOptions | None = None) -> str:
         sections["solver"] = [f'method = "{options.method}"'] + (
             [f"steps = {options.steps}"] if options.steps is not None else [])
     return "\n".join(f"[{name}]\n" + "\n".join(lines) + "\n" for name, lines in sections.items())
+
+
+def keys_markdown() -> str:
+    """Every table and key of the configuration file as a markdown table (for the README)."""
+    from .parameters import Setup as _Setup
+
+    defaults = _Setup()
+    lines = ["| table | key | meaning, unit, valid range | default |", "|---|---|---|---|"]
+    by_key = {(p.section, p.key): p for p in PARAMETERS.values()}
+    option_defaults = {"n_modes": defaults.machine.n_modes, "coupling": defaults.machine.coupling,
+                       "warp_law": defaults.machine.warp_law,
+                       "motion_law": defaults.machine.linkage.motion_law, "method": "rk4",
+                       "steps": "from the highest mode"}
+    for section, keys in keys_by_section().items():
+        for key, text in keys.items():
+            p = by_key.get((section, key))
+            if p is not None:
+                v = jnp.asarray(p.get(defaults)) / p.scale
+                default = (f"{float(v):.6g}" if v.ndim == 0
+                           else ", ".join(f"{float(x):.6g}" for x in v))
+            else:
+                default = option_defaults[key]
+            lines.append(f"| [{section}] | `{key}` | {text} | {default} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    print(keys_markdown())

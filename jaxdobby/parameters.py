@@ -64,6 +64,8 @@ class Parameter:
 
     def range_text(self) -> str:
         low, high = self.limits
+        if math.isinf(low) and math.isinf(high):
+            return "any finite number"
         lo = f"{'>=' if self.low_closed else '>'} {low:g}"
         return lo if math.isinf(high) else f"{lo} and < {high:g}"
 
