@@ -63,3 +63,28 @@ def flapwise_frequencies(lam, n_modes=3, wbar_max=None, n_scan=150):
 def chordwise_frequencies_inextensible(lam, n_modes=3):
     """ω̄_chord = √(ω̄_flap² − λ²) (inextensible beam, no Coriolis coupling to axial motion)."""
     return np.sqrt(flapwise_frequencies(lam, n_modes) ** 2 - lam**2)
+
+
+def _series_determinant(wbar, lam, n_terms=300):
+    """Tip-condition determinant from the Frobenius power series w = Σ aₖ ξᵏ (Wright et al.).
+
+    Recurrence (k+4)(k+3)(k+2)(k+1) aₖ₊₄ = (λ²/2)[(k+2)(k+1) aₖ₊₂ − k(k+1) aₖ] + ω̄² aₖ,
+    a₀ = a₁ = 0 (clamped); (a₂, a₃) = (1, 0) and (0, 1). The terms peak near e^√ω̄ ≈ 4e3 for
+    ω̄ ≈ 70, so float64 keeps ~12 digits.
+    """
+    k = np.arange(n_terms + 4)
+    cols = []
+    for a2, a3 in ((1.0, 0.0), (0.0, 1.0)):
+        a = np.zeros(n_terms + 4)
+        a[2], a[3] = a2, a3
+        for j in range(n_terms):
+            a[j + 4] = (0.5 * lam**2 * ((j + 2) * (j + 1) * a[j + 2] - j * (j + 1) * a[j])
+                        + wbar**2 * a[j]) / ((j + 4) * (j + 3) * (j + 2) * (j + 1))
+        cols.append(((k * (k - 1) * a).sum(), (k * (k - 1) * (k - 2) * a).sum()))
+    return cols[0][0] * cols[1][1] - cols[0][1] * cols[1][0]
+
+
+def flapwise_frequencies_series(lam, brackets):
+    """Flapwise ω̄ by the power series, one root of the determinant in each (lo, hi) bracket."""
+    return np.array([scipy.optimize.brentq(_series_determinant, lo, hi, args=(lam,), xtol=1e-13)
+                     for lo, hi in brackets])

@@ -108,6 +108,7 @@ class VonKarmanBeam:
         x0 = np.arange(n)[:, None] * Le + xi[None, :] * Le  # (n, q) abscissae [m]
         Me = rA * np.einsum("q,qia,qib->ab", wq, Ne, Ne)
         Ge = rA * np.einsum("q,qia,ij,qjb->ab", wq, Ne, _S, Ne)
+        Me, Ge = (Me + Me.T) / 2, (Ge - Ge.T) / 2  # exact symmetry / skew (quadrature roundoff)
         fce = rA * np.einsum("q,eq,qa->ea", wq, x0, Ne[:, 0, :])  # ∫ρA Nᵀ(x,0): u rows
         fee = rA * np.einsum("q,eq,qa->ea", wq, x0, Ne[:, 1, :])  # ∫ρA Nᵀ S(x,0) = (0,x)
         object.__setattr__(self, "Le", Le)
@@ -331,6 +332,32 @@ def tip_deflection(Omega, t_eval, *, n_elements=16, rtol=1e-8, T=KRB_SPINUP_TIME
     return np.interp(t_eval, sol["t"], v)
 
 
+def _refined_extremum(t, v, k):
+    """Vertex of the parabola through the samples k−1, k, k+1 (the sample itself at an end)."""
+    if k == 0 or k == len(t) - 1:
+        return t[k], v[k]
+    c2, c1, c0 = np.polyfit(t[k - 1:k + 2] - t[k], v[k - 1:k + 2], 2)
+    tau = -c1 / (2 * c2)
+    return t[k] + tau, c0 + c1 * tau + c2 * tau**2
+
+
+def spinup_metrics(t, v, T=KRB_SPINUP_TIME):
+    """Scalar summary of a tip-deflection history v(t) [m] on samples t [s] (dt ≲ 0.01 s).
+
+    Returns dict: ``peak`` (most negative v during the spin-up, t ≤ T [m]) and ``t_peak`` [s];
+    ``amplitude`` (½(max − min) of v for t ≥ T [m]) and ``mean`` (mean of the samples for
+    t ≥ T [m]). Extrema are refined by a parabola through the neighbouring samples, so the
+    numbers depend on the sampling only at third order in dt.
+    """
+    t, v = np.asarray(t, float), np.asarray(v, float)
+    ramp, late = t <= T, t >= T
+    tp, vp = _refined_extremum(t[ramp], v[ramp], int(np.argmin(v[ramp])))
+    tl, vl = t[late], v[late]
+    vmax = _refined_extremum(tl, vl, int(np.argmax(vl)))[1]
+    vmin = _refined_extremum(tl, vl, int(np.argmin(vl)))[1]
+    return dict(peak=vp, t_peak=tp, amplitude=0.5 * (vmax - vmin), mean=float(vl.mean()))
+
+
 def rotating_modes(Omega, n_elements=16, *, rel_step=1e-6, **beam):
     """In-plane bending modes about the steadily rotating equilibrium q₀ at hub rate Ω [rad/s].
 
@@ -382,3 +409,16 @@ def rotating_frequencies(Omega, n_elements=16, *, n_modes=3, **beam):
     coupling included).
     """
     return rotating_modes(Omega, n_elements, **beam)[2][:n_modes]
+
+
+#: KRB spin-up results of this model (t ∈ [0, 30] s sampled at 0.01 s, metrics of
+#: :func:`spinup_metrics`): Richardson extrapolation h → 0 of 20 and 40 elements at rtol 1e-8
+#: (the error is O(h²), measured ratio 4.0 ± 0.1 between 10/20/40 elements). Independent
+#: Richardson from 8/16 elements agrees within 8e-6 m (peak) and 1e-6 m (amplitude); the
+#: 20-element values differ from these by < 5e-4 m (peak) and < 2.1e-5 m (amplitude).
+#: Keys: Ω [rad/s] → peak [m], t_peak [s], amplitude [m], mean [m] (mean of v for t ≥ T).
+KRB_SPINUP_RESULTS = {
+    4.0: dict(peak=-0.4007783, t_peak=6.9533, amplitude=4.04873e-3, mean=-2.32e-5),
+    6.0: dict(peak=-0.5758748, t_peak=6.7695, amplitude=3.83932e-3, mean=-6.66e-5),
+    10.0: dict(peak=-0.8658731, t_peak=6.4686, amplitude=6.63794e-3, mean=-1.108e-4),
+}
