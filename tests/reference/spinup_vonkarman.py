@@ -37,11 +37,13 @@ implicit, L-stable method (Radau IIA, order 5) and an analytic Jacobian.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import dataclasses
 
 import numpy as np
 import scipy.integrate
 import scipy.linalg
+import scipy.linalg.blas
 
 #: Kane, Ryan & Banerjee (1987) beam: L [m], E [Pa], rho [kg/m³], A [m²], I [m⁴].
 KRB_BEAM = dict(L=10.0, E=7.0e10, rho=3000.0, A=4.0e-4, I=2.0e-7)
@@ -215,18 +217,57 @@ class VonKarmanBeam:
         return 3 * self.n_elements + np.arange(-3, 0)
 
 
-def _blas_single_thread():
-    """Context limiting BLAS to one thread when threadpoolctl is installed (no-op otherwise).
+#: (get, set) thread-count entry points of the OpenBLAS builds numpy and scipy ship
+_OPENBLAS_THREAD_API = (
+    ("openblas_get_num_threads", "openblas_set_num_threads"),
+    ("scipy_openblas_get_num_threads", "scipy_openblas_set_num_threads"),
+    ("scipy_openblas_get_num_threads64_", "scipy_openblas_set_num_threads64_"),
+)
 
-    The integration does thousands of LU factorisations of ~100×100 matrices; numpy's and
-    scipy's separate OpenBLAS pools then fight over the cores (measured on 2 cores: 20
-    elements took 77 s instead of 2.3 s). Setting OPENBLAS_NUM_THREADS=1 has the same effect.
+
+@contextlib.contextmanager
+def _blas_single_thread():
+    """Run the block with single-threaded BLAS; restore the thread counts after.
+
+    The integration does thousands of LU factorisations of ~100×100 matrices, where OpenBLAS
+    threads only cost: on a 2-core machine with other work running, 20 and 40 elements took
+    10× longer with threaded BLAS (406 s against 38 s for the slow tests). Uses threadpoolctl
+    when installed, otherwise the set_num_threads entry points of the OpenBLAS libraries
+    already loaded in this process (Linux /proc/self/maps); does nothing where neither works.
+    Setting OPENBLAS_NUM_THREADS=1 before Python starts has the same effect.
     """
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+        pass
+    else:
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield
+        return
+    restore = []
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = sorted({line.split()[-1] for line in maps if "openblas" in line.lower()})
+    except OSError:
+        paths = []
+    for path in paths:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for get_name, set_name in _OPENBLAS_THREAD_API:
+            try:
+                get, put = getattr(lib, get_name), getattr(lib, set_name)
+            except AttributeError:
+                continue
+            restore.append((put, get()))
+            put(1)
+            break
+    try:
+        yield
+    finally:
+        for put, n in restore:
+            put(n)
 
 
 def integrate(model, motion, y0, t_eval, *, breakpoints=(), rtol=1e-8, atol=None,
@@ -254,19 +295,27 @@ def integrate(model, motion, y0, t_eval, *, breakpoints=(), rtol=1e-8, atol=None
     The analytic Jacobian ∂ẏ/∂y = [[0, I], [−M⁻¹(K_T(q) + αG) + ω²I, −2ωM⁻¹G]] is supplied.
     """
     m = 3 * model.n_elements
-    Minv = model.M_inv
-    MinvG = Minv @ model.G
+    # q̈ = ω²q − M⁻¹[2ωGq̇ + αGq + αf_e − ω²f_c + f_int(q)], with the constant products
+    # precomputed (scipy's BLAS wrappers: no copies for Fortran-ordered operands)
+    gemv, gemm = scipy.linalg.blas.dgemv, scipy.linalg.blas.dgemm
+    Minv = np.asfortranarray(model.M_inv)
+    MinvG = np.asfortranarray(gemm(1.0, Minv, model.G))
+    Minv_fe, Minv_fc = gemv(1.0, Minv, model.f_e), gemv(1.0, Minv, model.f_c)
     t_eval = np.asarray(t_eval, dtype=float)
 
     def rhs(t, y):
         w, a = motion(t)
-        return np.concatenate([y[m:], model.acceleration(y[:m], y[m:], w, a)])
+        q, qd = y[:m], y[m:]
+        acc = (w**2 * q - gemv(2 * w, MinvG, qd) - gemv(a, MinvG, q) - a * Minv_fe
+               + w**2 * Minv_fc - gemv(1.0, Minv, model.internal_force(q)))
+        return np.concatenate([qd, acc])
 
     def jac(t, y):
         w, a = motion(t)
         J = np.zeros((2 * m, 2 * m))
         J[:m, m:] = np.eye(m)
-        J[m:, :m] = -Minv @ (model.tangent_stiffness(y[:m]) + a * model.G) + w**2 * np.eye(m)
+        J[m:, :m] = -gemm(1.0, Minv, model.tangent_stiffness(y[:m])) - a * MinvG
+        J[m:, :m] += w**2 * np.eye(m)
         J[m:, m:] = -2 * w * MinvG
         return J
 
@@ -386,9 +435,10 @@ def rotating_modes(Omega, n_elements=16, *, rel_step=1e-6, **beam):
                          - model.residual(*args_m, Omega, 0.0)) / (2 * h)
         return out
 
-    K, C = jac_fd(0), jac_fd(1)
-    A = np.block([[np.zeros((m, m)), np.eye(m)], [-model.M_inv @ K, -model.M_inv @ C]])
-    s, vec = scipy.linalg.eig(A)
+    with _blas_single_thread():
+        K, C = jac_fd(0), jac_fd(1)
+        A = np.block([[np.zeros((m, m)), np.eye(m)], [-model.M_inv @ K, -model.M_inv @ C]])
+        s, vec = scipy.linalg.eig(A)
     up = s.imag > 0
     s, phi = s[up], vec[:m, up]
     if np.any(np.abs(s.real) > 1e-6 * np.abs(s)):
