@@ -35,7 +35,7 @@ GAUSS_POINTS = 0.5 * (_GAUSS_X + 1.0)
 GAUSS_WEIGHTS = 0.5 * _GAUSS_W
 """Gauss–Legendre weights on [0, 1], summing to 1."""
 
-S = jnp.array([[0.0, -1.0], [1.0, 0.0]])
+S = np.array([[0.0, -1.0], [1.0, 0.0]])  # numpy: importing must not start a JAX backend
 """Planar cross-product matrix: S @ r is r turned by +90°."""
 
 

@@ -32,7 +32,6 @@ from ._arrays import as_float
 
 from .flexible_body import FlexibleBody
 
-S = jnp.array([[0.0, -1.0], [1.0, 0.0]])
 
 
 def rotation_matrix(angle) -> Array:

@@ -9,7 +9,6 @@ theorem for the quarter circle. Hermite-cubic Euler–Bernoulli elements with co
 
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
 from jaxdobby.beam import Beam
 from jaxdobby.centreline import CentreLine

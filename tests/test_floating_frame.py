@@ -9,23 +9,19 @@
   under the same loads; keeping all modes reproduces the unreduced FE equations.
 """
 
-import diffrax
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
-from scipy.integrate import cumulative_simpson, solve_ivp
+from scipy.integrate import cumulative_simpson
 
 from jaxdobby import elements
 from jaxdobby.beam import Beam
 from jaxdobby.centreline import CentreLine
 from jaxdobby.examples import krb_beam
 from jaxdobby.flexible_body import flexible_body
-from jaxdobby.floating_frame import ConstantSpin, FrameMotion, SpinUp, frame_state, kane_terms
-from jaxdobby.loads import gravity_load, rigid_motion_load
+from jaxdobby.floating_frame import ConstantSpin, SpinUp, frame_state
 from jaxdobby.response import simulate_flexible_body
-from jaxdobby.supports import Supports, static_deflection
+from jaxdobby.supports import Supports
 
 CLAMP = Supports(clamped=(0,))
 
