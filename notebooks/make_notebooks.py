@@ -1,0 +1,85 @@
+"""Build the notebooks from their diffable sources and execute them.
+
+Each ``src/NN_name.py`` is a Python script split into cells by ``# %%`` lines (``# %% [markdown]``
+for text cells, whose lines start with ``# ``). This script turns each into ``NN_name.ipynb``
+and executes it with nbclient, so the committed notebooks show their figures to a reader who
+does not run them.
+
+    python notebooks/make_notebooks.py            # all, full size
+    python notebooks/make_notebooks.py 02 --quick # one, reduced size (as the tests do)
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import nbformat
+from nbclient import NotebookClient
+
+HERE = Path(__file__).resolve().parent
+
+
+def cells_from_source(text: str) -> list:
+    cells, kind, lines = [], None, []
+
+    def flush():
+        body = "\n".join(lines).strip("\n")
+        if kind is None or not body:
+            return
+        if kind == "markdown":
+            body = "\n".join(line[2:] if line.startswith("# ") else line.lstrip("#")
+                             for line in body.splitlines())
+            cells.append(nbformat.v4.new_markdown_cell(body))
+        else:
+            cells.append(nbformat.v4.new_code_cell(body))
+
+    for line in text.splitlines():
+        if line.startswith("# %%"):
+            flush()
+            kind, lines = ("markdown" if "[markdown]" in line else "code"), []
+        else:
+            lines.append(line)
+    flush()
+    return cells
+
+
+def build(source: Path, execute: bool = True, quick: bool = False, timeout: int = 1800) -> Path:
+    nb = nbformat.v4.new_notebook()
+    nb.cells = cells_from_source(source.read_text(encoding="utf-8"))
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3",
+                                 "language": "python"}
+    target = HERE / f"{source.stem}.ipynb"
+    if execute:
+        env_before = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK")
+        os.environ["JAXDOBBY_NOTEBOOK_QUICK"] = "1" if quick else "0"
+        try:
+            NotebookClient(nb, timeout=timeout, kernel_name="python3",
+                           resources={"metadata": {"path": str(HERE)}}).execute()
+        finally:
+            if env_before is None:
+                os.environ.pop("JAXDOBBY_NOTEBOOK_QUICK", None)
+            else:
+                os.environ["JAXDOBBY_NOTEBOOK_QUICK"] = env_before
+    return target, nb
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("which", nargs="*", help="notebook numbers (default: all)")
+    parser.add_argument("--quick", action="store_true", help="reduced size")
+    parser.add_argument("--no-execute", action="store_true")
+    ns = parser.parse_args(argv)
+    for source in sorted((HERE / "src").glob("*.py")):
+        if ns.which and not any(source.stem.startswith(w) for w in ns.which):
+            continue
+        target, nb = build(source, execute=not ns.no_execute, quick=ns.quick)
+        nbformat.write(nb, target)
+        print(f"wrote {target.relative_to(HERE.parent)}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
