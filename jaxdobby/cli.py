@@ -114,14 +114,15 @@ def _sweep(ns: argparse.Namespace) -> int:
 
     from .io import write_text
     from .plots import overlay_figure, plt
-    from .sweep import STUDIES, csv_table, markdown_table, run_sweep, trend_figure
+    from .sweep import STUDIES, csv_table, markdown_table, prepare_sweep, trend_figure
 
     setup, options = setup_from_args(ns)
     values = ns.values if ns.values else STUDIES.get(ns.parameter)
     if values is None:
         raise InputError(f"no default values for '{ns.parameter}': give them with --values")
+    sweep = prepare_sweep(setup, ns.parameter, values, method=options.method)
     _status(f"sweeping {ns.parameter} over {len(values)} values (the first run compiles)...")
-    result = run_sweep(setup, ns.parameter, values, method=options.method)
+    result = sweep()
     if ns.out:
         out = Path(ns.out)
         out.mkdir(parents=True, exist_ok=True)

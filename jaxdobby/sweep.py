@@ -47,13 +47,15 @@ TABLE_COLUMNS = [
 
 @dataclasses.dataclass
 class SweepResult:
-    """Rows (one summary per value) and the runs' time series, in the order of ``values``."""
+    """Rows (one summary per value) and the runs' time series, in the order of ``values``;
+    ``steps``: the RK4 steps per cycle of a vmapped batch (the most demanding value's)."""
 
     parameter: str
     unit: str
     values: list[float]
     rows: list[dict]
     series: list
+    steps: int | None = None
 
 
 def _label(parameter: str) -> tuple[str, str]:
@@ -64,6 +66,12 @@ def _label(parameter: str) -> tuple[str, str]:
 
 def run_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4") -> SweepResult:
     """Steady states of ``setup`` with ``parameter`` set to each of ``values`` (users' units)."""
+    return prepare_sweep(setup, parameter, values, method=method)()
+
+
+def prepare_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4"):
+    """Validate a sweep (raising :class:`InputError` for bad values) and return a function
+    that runs it. Splitting the two lets the command line report bad input before it starts."""
     if parameter != "modes" and parameter not in PARAMETERS:
         raise InputError(f"unknown sweep parameter '{parameter}': use modes or one of "
                          f"{', '.join(PARAMETERS)}")
@@ -78,13 +86,17 @@ def run_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4") -> S
                 k = int(k)
             if not isinstance(k, int) or not 1 <= k <= 30:
                 raise InputError(f"modes = {k!r} is outside the valid range (an integer 1…30)")
-            s = dataclasses.replace(setup, machine=setup.machine.replace(n_modes=k))
-            runs.append(_simulate(s.machine, s.operating, method=method,
-                                  steps=default_steps(s.machine, s.operating) if method == "rk4"
-                                  else None, n_out=3001, rtol=1e-8, atol=1e-12,
-                                  tolerance=1e-6, forward_mode=False))
-        return SweepResult(name, unit, values, [summary(r) for r in runs],
-                           [r.series for r in runs])
+            runs.append(dataclasses.replace(setup, machine=setup.machine.replace(n_modes=k)))
+
+        def run_modes():
+            sims = [_simulate(s.machine, s.operating, method=method,
+                              steps=default_steps(s.machine, s.operating) if method == "rk4"
+                              else None, n_out=3001, rtol=1e-8, atol=1e-12, tolerance=1e-6,
+                              forward_mode=False) for s in runs]
+            return SweepResult(name, unit, values, [summary(r) for r in sims],
+                               [r.series for r in sims])
+
+        return run_modes
     p = PARAMETERS[parameter]
     si = [check_value(p, v, f"{parameter}")[0] * p.scale for v in values]
     setups = []
@@ -100,9 +112,13 @@ def run_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4") -> S
         return _simulate(s.machine, s.operating, method=method, steps=steps, n_out=3001,
                          rtol=1e-8, atol=1e-12, tolerance=1e-6, forward_mode=False)
 
-    batch = eqx.filter_jit(jax.vmap(one))(jnp.asarray(si))
-    runs = [jax.tree.map(lambda a, i=i: a[i], batch) for i in range(len(values))]
-    return SweepResult(name, unit, values, [summary(r) for r in runs], [r.series for r in runs])
+    def run_batch():
+        batch = eqx.filter_jit(jax.vmap(one))(jnp.asarray(si))
+        runs = [jax.tree.map(lambda a, i=i: a[i], batch) for i in range(len(values))]
+        return SweepResult(name, unit, values, [summary(r) for r in runs],
+                           [r.series for r in runs], steps)
+
+    return run_batch
 
 
 def markdown_table(result: SweepResult) -> str:

@@ -167,3 +167,15 @@ def test_frequency_gradients_match_finite_differences():
     # Thickness matters here only through the end mass and the spring (uniform t scales M and K
     # together): check the gradient is not trivially zero.
     assert np.all(np.abs(jax.jacfwd(freqs)(t0, d0)) > 1.0)
+
+
+def test_examples_module():
+    # The documented examples are claims too: the tip deflection equals F L^3/(3 E I) exactly,
+    # and the curved arm's modes are positive and ascending.
+    from jaxdobby import examples
+
+    i = 0.006 * 0.04**3 / 12
+    np.testing.assert_allclose(examples.cantilever_tip_deflection(100.0),
+                               100.0 / (3 * 2.07e11 * i), rtol=1e-9)
+    f = np.asarray(examples.curved_arm_modes(4))
+    assert np.all(np.diff(f) > 0) and 500.0 < f[0] < 2000.0
