@@ -68,3 +68,28 @@ def test_rk4_matches_adaptive_reference():
     for name in METRICS:
         np.testing.assert_allclose(float(fast.metrics[name]), float(ref.metrics[name]),
                                    rtol=1e-4, err_msg=name)
+
+
+def test_differentiable_in_operating_and_design_parameters():
+    # Forward-mode derivatives of the steady state (through the shooting, by the
+    # implicit-function theorem, and the stroke's root solve) against central differences
+    # (h = 1e-4 relative): measured agreement <= 6e-5 relative for the log-sum-exp surrogate
+    # (its curvature limits the difference quotient) and <= 2e-6 for the RMS -> 2e-4.
+    import jax
+
+    from jaxdobby.parameters import PARAMETERS, Setup, apply
+
+    names = ("speed", "warp_force", "stroke", "heald_frame_mass")
+    x0 = jnp.array([800.0, 690.0, 120.0, 12.0])
+
+    def metrics(x):
+        s = apply(Setup(), {n: x[i] * PARAMETERS[n].scale for i, n in enumerate(names)})
+        run = simulate(s.machine, s.operating, steps=6100)
+        return jnp.stack([run.metrics["deviation_pp_smooth"], run.metrics["deviation_rms"]])
+
+    f = jax.jit(metrics)
+    jac = jax.jit(jax.jacfwd(metrics))(x0)
+    for i in range(len(names)):
+        h = 1e-4 * x0[i]
+        fd = (f(x0.at[i].add(h)) - f(x0.at[i].add(-h))) / (2 * h)
+        np.testing.assert_allclose(jac[:, i], fd, rtol=2e-4, err_msg=names[i])
