@@ -67,9 +67,13 @@ washers and the neighbouring arm's bushes = 8 mm, the largest value the source s
 assumption; set ``pitch_mm``/``clearance_mm``). Depth: 20 mm keeps material round the pins;
 80 mm is twice the default. Heald frame 8–18 kg: DESIGN.md §6."""
 
-DEFAULT_DEPTH_POSITIONS_MM = (0.0, 80.0, 140.0, 201.0, 226.0)
-"""Depth control points: pivot, ring-link joint, middle of the slot, link-11 joint at the
-longest stroke, tip [mm of arc length]."""
+def default_depth_positions(arm: ArmDesign) -> np.ndarray:
+    """Depth control points [m of arc length]: pivot, ring-link joint, middle of the slot, end
+    of the slot (the link-11 joint at the longest stroke), tip — 0, 80, 153, 201, 226 mm on
+    the default arm."""
+    return np.array([0.0, float(arm.ring_joint_arc_length),
+                     0.5 * float(arm.arc_start + arm.arc_end), float(arm.arc_end),
+                     float(arm.total_length)])
 
 PITCH_MM, CLEARANCE_MM = 12.0, 4.0
 """Pitch between neighbouring arms (the heald-frame pitch of a rotary dobby) and the clearance
@@ -129,7 +133,7 @@ class DesignSpace(eqx.Module):
             bounds: (lower, upper) per name in users' units (default :data:`DEFAULT_BOUNDS`;
                 the thickness's upper bound is capped at pitch − clearance).
             depth_positions_mm: arc lengths of the depth control points (default: those of
-                ``base`` if it has several, else :data:`DEFAULT_DEPTH_POSITIONS_MM`); the base
+                ``base`` if it has several, else :func:`default_depth_positions`); the base
                 depth profile is interpolated onto them.
             pitch_mm, clearance_mm: t ≤ pitch − clearance.
         """
@@ -168,6 +172,8 @@ class DesignSpace(eqx.Module):
                     initial=jnp.zeros_like(lower), basis=arm_modes(base.machine).shapes,
                     target_stroke=base.machine.stroke(),
                     arc_length=arm.arc_radius * arm.arc_angle)
+        if "arc_radius" in variables:
+            _check_stroke_reachable(space)
         values = space.values(base)
         u0 = (values - lower) / (upper - lower)
         return dataclasses.replace(space, initial=jnp.clip(u0, 0.0, 1.0))
@@ -182,7 +188,8 @@ class DesignSpace(eqx.Module):
         out = []
         for v in self.variables:
             if v == "depth":
-                out += [f"depth@{float(s) / MM:g}mm" for s in self.base.machine.arm.depth_arc_lengths]
+                out += [f"depth@{float(s) / MM:.0f}mm"
+                        for s in self.base.machine.arm.depth_arc_lengths]
             else:
                 out.append(v)
         return out
@@ -230,12 +237,29 @@ class DesignSpace(eqx.Module):
         return jnp.clip(u, 0.0, 1.0)
 
 
+def _check_stroke_reachable(space: DesignSpace) -> None:
+    """The kept stroke must be reachable in the slot at both bounds of the arc radius."""
+    from ..stroke import stroke_range
+
+    i = space.labels().index("arc_radius")
+    target = float(space.target_stroke)
+    for radius in (float(space.lower[i]), float(space.upper[i])):
+        arm = dataclasses.replace(space.base.machine.arm, arc_radius=radius,
+                                  arc_angle=space.arc_length / radius)
+        lo, hi = (float(x) for x in stroke_range(space.base.machine.replace(arm=arm).chain))
+        if not lo - 1e-9 <= target <= hi + 1e-9:
+            raise InputError(
+                f"stroke {target / MM:.2f} mm cannot be kept with arc radius {radius / MM:g} mm "
+                f"(reachable {lo / MM:.2f} … {hi / MM:.2f} mm): narrow the arc_radius bounds or "
+                "give a smaller --stroke")
+
+
 def _with_depth_positions(arm: ArmDesign, positions_mm) -> ArmDesign:
     """``arm`` with its depth profile interpolated onto control points (mm, increasing)."""
     if positions_mm is None:
         if arm.depth.shape[0] > 1:
             return arm
-        positions_mm = DEFAULT_DEPTH_POSITIONS_MM
+        positions_mm = default_depth_positions(arm) / MM
     s = np.asarray(positions_mm, dtype=float)
     total = float(arm.total_length) / MM
     if s.ndim != 1 or s.size < 1 or not np.all(np.isfinite(s)):
