@@ -272,8 +272,10 @@ def run(ns: argparse.Namespace) -> int:
     study = build_study(ns)
     outcome = run_study(study, progress=lambda line: print(line, file=sys.stderr, flush=True))
     if ns.out:
+        bounds = {f"{k}_{unit.replace(' ', '_')}": tuple(v) for (k, v), (unit, _) in
+                  zip(outcome.summary["bounds"].items(), study.space.units())}
         figs = None if ns.no_figures else figures(outcome.history, list(study.limits.names),
-                                                   outcome.profiles, outcome.deviations)
+                                                   outcome.profiles, outcome.deviations, bounds)
         paths = write_outputs(ns.out, outcome.history, outcome.summary, outcome.design_toml,
                               figs)
         print(f"wrote {len(paths)} files to {ns.out}", file=sys.stderr)

@@ -71,18 +71,19 @@ def write_outputs(directory, history: list[dict], result: dict, design_toml: str
 
 
 def figures(history: list[dict], constraint_names: list[str], profiles: dict,
-            deviations: dict) -> dict:
+            deviations: dict, variables: dict[str, tuple[float, float]] | None = None) -> dict:
     """The three figures.
 
     Args:
         history: the history rows (keys ``iteration``, ``objective``, ``c_<name>``).
         constraint_names: names of the constraints in the rows.
+        variables: history column → (lower, upper) bound, drawn normalised to the box.
         profiles: label → (arc length [m], depth [m]) of the arm, e.g. before/after.
         deviations: speed label → {design label → (time [s], deviation [m])}.
     """
     out = {}
     it = [r["iteration"] for r in history]
-    fig, axes = plt.subplots(2, 1, figsize=(7.0, 5.6), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(3, 1, figsize=(7.0, 7.8), sharex=True, layout="constrained")
     axes[0].plot(it, [r["objective"] for r in history], "o-", label="objective J")
     axes[0].plot(it, [r["lagrangian"] for r in history], "--", color="0.5",
                  label="augmented Lagrangian")
@@ -93,7 +94,14 @@ def figures(history: list[dict], constraint_names: list[str], profiles: dict,
         axes[1].plot(it, [r[f"c_{name}"] for r in history], "o-", label=_constraint_label(name))
     axes[1].axhline(0.0, color="k", lw=0.8)
     axes[1].set_ylabel("constraint c (feasible ≤ 0)")
-    axes[1].set_xlabel("iteration")
+    for key, (lo, hi) in (variables or {}).items():
+        axes[2].plot(it, [(r[key] - lo) / (hi - lo) for r in history], "o-", ms=3, label=key)
+    axes[2].set_ylim(-0.05, 1.05)
+    axes[2].set_ylabel("design variable (0 = lower, 1 = upper bound)")
+    axes[2].set_xlabel("iteration")
+    axes[2].grid(alpha=0.3)
+    if variables:
+        axes[2].legend(fontsize=7, ncol=2)
     if constraint_names:
         axes[1].legend()
     else:
