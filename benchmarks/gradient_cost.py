@@ -24,11 +24,10 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-import jax.numpy as jnp  # noqa: E402
 
-from jaxdobby.optimize.design import DesignSpace  # noqa: E402
-from jaxdobby.optimize.objective import Evaluator, Objective  # noqa: E402
-from jaxdobby.parameters import Setup  # noqa: E402
+from jaxdobby.optimize.design import DesignSpace
+from jaxdobby.optimize.objective import Evaluator, Objective
+from jaxdobby.parameters import Setup
 
 CASES = {
     "thickness": ["thickness"],
@@ -50,6 +49,25 @@ def timed(fn, repeats):
     return first, statistics.median(runs)
 
 
+def measure(name, variables, steps, repeats) -> dict:
+    """Timings of one case: forward solve, forward- and reverse-mode gradients."""
+    space = DesignSpace.create(Setup(), variables)
+    row = {"case": name, "n_variables": space.size, "steps": steps}
+
+    def nudge(i):  # new values each call, same shapes: no recompilation
+        return space.initial + 1e-3 * i
+
+    for mode in ("forward", "reverse"):
+        ev = Evaluator(space, Objective(), steps=steps, mode=mode)
+        if mode == "forward":
+            _, row["solve_s"] = timed(lambda i, ev=ev: ev.value(nudge(i)), repeats)
+        first, row[f"{mode}_gradient_s"] = timed(
+            lambda i, ev=ev: ev.value_and_grad(nudge(i)), repeats)
+        row[f"{mode}_compile_s"] = first - row[f"{mode}_gradient_s"]
+        row[f"{mode}_ratio"] = row[f"{mode}_gradient_s"] / row["solve_s"]
+    return row
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=3)
@@ -58,25 +76,16 @@ def main():
     ns = ap.parse_args()
     rows = []
     for name, variables in CASES.items():
-        space = DesignSpace.create(Setup(), variables)
-        row = dict(case=name, n_variables=space.size, steps=ns.steps)
-        for mode in ("forward", "reverse"):
-            ev = Evaluator(space, Objective(), steps=ns.steps, mode=mode)
-            nudge = lambda i: space.initial + 1e-3 * i  # noqa: E731  new values, same shapes
-            if mode == "forward":
-                first, row["solve_s"] = timed(lambda i: ev.value(nudge(i)), ns.repeats)
-            first, row[f"{mode}_gradient_s"] = timed(lambda i: ev.value_and_grad(nudge(i)),
-                                                     ns.repeats)
-            row[f"{mode}_compile_s"] = first - row[f"{mode}_gradient_s"]
-            row[f"{mode}_ratio"] = row[f"{mode}_gradient_s"] / row["solve_s"]
+        row = measure(name, variables, ns.steps, ns.repeats)
         rows.append(row)
         print(json.dumps(row), flush=True)
     out = Path(ns.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "gradient_cost.json").write_text(json.dumps(dict(
-        device=str(jax.devices()[0]), rows=rows), indent=2))
-    lines = ["| variables | n | forward solve [s] | forward-mode gradient [s] (×) | "
-             "reverse-mode gradient [s] (×) |", "|---|---|---|---|---|"]
+    (out / "gradient_cost.json").write_text(json.dumps({
+        "device": str(jax.devices()[0]), "rows": rows}, indent=2))
+    header = ("| variables | n | forward solve [s] | forward-mode gradient [s] (×) | "
+              "reverse-mode gradient [s] (×) |")
+    lines = [header, "|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['case']} | {r['n_variables']} | {r['solve_s']:.2f} | "
                      f"{r['forward_gradient_s']:.1f} ({r['forward_ratio']:.1f}×) | "

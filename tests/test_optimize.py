@@ -11,7 +11,13 @@ import pytest
 
 from jaxdobby.cli import main
 from jaxdobby.errors import InputError
-from jaxdobby.optimize import Constraints, DesignSpace, Settings, constraint_jacobian, optimize
+from jaxdobby.optimize import (
+    Constraints,
+    DesignSpace,
+    Settings,
+    constraint_jacobian,
+    optimize,
+)
 from jaxdobby.optimize.loop import projected_gradient
 from jaxdobby.parameters import Setup
 

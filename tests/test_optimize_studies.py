@@ -8,7 +8,6 @@ All slow (each gradient compiles for 2-5 minutes on 2 cores and costs 10-60 s): 
 import json
 import math
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -41,7 +40,7 @@ def test_gradients_match_finite_differences_for_every_design_variable():
                                bounds={"arc_radius": (300.0, 600.0)})
     steps = 12900  # valid over the depth box (choose_steps)
     u0 = space.initial + 0.05  # off the default point (depths 43 mm, t = 6.2 mm, ...)
-    fn = lambda u: metric_vector(space, u, steps)  # noqa: E731
+    fn = lambda u: metric_vector(space, u, steps)
     fwd = np.asarray(jax.jit(jax.jacfwd(fn))(u0))
     rev = np.asarray(jax.jit(jax.jacrev(fn))(u0))
     value = jax.jit(fn)

@@ -124,12 +124,12 @@ def test_near_degenerate_modes_eigh_gradients_blow_up_fixed_basis_does_not():
 
     # eigh path: the mode shapes' derivatives carry 1/(λ4 − λ3): huge (measured 4e14 m/√kg per
     # m against shape entries of order 4).
-    shapes = lambda d: build_model(tapered(d), OperatingPoint()).body.points[LINK]  # noqa: E731
+    shapes = lambda d: build_model(tapered(d), OperatingPoint()).body.points[LINK]
     assert np.abs(np.asarray(jax.jit(jax.jacfwd(shapes))(d0))).max() > 1e8
     # ... and smooth, basis-invariant outputs inherit the cancellation error: forward and
     # reverse mode disagree (measured: up to 9e-4 relative) and neither matches the central
     # difference (forward: up to 1.2e-3 relative), where the fixed basis below gets 1e-8.
-    eigh = lambda d: smooth_outputs(d, None)  # noqa: E731
+    eigh = lambda d: smooth_outputs(d, None)
     eigh_fwd = np.asarray(jax.jit(jax.jacfwd(eigh))(d0))
     eigh_rev = np.asarray(jax.jit(jax.jacrev(eigh))(d0))
     eigh_fd = central_difference(eigh, d0, 1e-6)
@@ -138,7 +138,7 @@ def test_near_degenerate_modes_eigh_gradients_blow_up_fixed_basis_does_not():
 
     # Fixed basis (the modes at d0, held constant): finite, forward = reverse, = differences.
     basis = eqx.filter_jit(arm_modes)(tapered(d0)).shapes
-    fixed = lambda d: smooth_outputs(d, basis)  # noqa: E731
+    fixed = lambda d: smooth_outputs(d, basis)
     fwd = np.asarray(jax.jit(jax.jacfwd(fixed))(d0))
     rev = np.asarray(jax.jit(jax.jacrev(fixed))(d0))
     fd = central_difference(fixed, d0, 1e-6)

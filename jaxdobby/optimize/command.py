@@ -165,7 +165,7 @@ def build_study(ns: argparse.Namespace):
     import jax.numpy as jnp
 
     from ..cli import setup_from_args
-    from .design import DesignSpace, VARIABLES, Constraints
+    from .design import VARIABLES, Constraints, DesignSpace
     from .loop import Settings
     from .objective import Objective
     from .study import Study, speeds_from_rpm
@@ -308,10 +308,12 @@ def summary_text(summary: dict) -> str:
                      f"{s['optimised']['deviation_pp_mm']:>10.4f} "
                      f"{-s['improvement_percent']:>+7.1f}%")
     o = summary["optimality"]
-    lines += ["", f"  objective J {summary['objective_start']:.5f} → "
-              f"{summary['objective_optimised']:.5f} in {summary['iterations']} iterations "
-              f"({summary['evaluations']} gradient evaluations, {summary['gradient_mode']} mode)",
-              f"  optimality: projected gradient {o['projected_gradient']:.2e}, violation "
-              f"{o['violation']:.2e}, complementarity {o['complementarity']:.2e}; "
-              f"converged: {'yes' if summary['converged'] else 'no'}"]
+    lines.append("")
+    lines.append(f"  objective J {summary['objective_start']:.5f} → "
+                 f"{summary['objective_optimised']:.5f} in {summary['iterations']} iterations "
+                 f"({summary['evaluations']} gradient evaluations, "
+                 f"{summary['gradient_mode']} mode)")
+    lines.append(f"  optimality: projected gradient {o['projected_gradient']:.2e}, violation "
+                 f"{o['violation']:.2e}, complementarity {o['complementarity']:.2e}; "
+                 f"converged: {'yes' if summary['converged'] else 'no'}")
     return "\n".join(lines)

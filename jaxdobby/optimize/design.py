@@ -124,7 +124,7 @@ class DesignSpace(eqx.Module):
     def create(cls, base: Setup, variables: Sequence[str],
                bounds: Mapping[str, tuple[float, float]] | None = None,
                depth_positions_mm: Sequence[float] | None = None,
-               pitch_mm: float = PITCH_MM, clearance_mm: float = CLEARANCE_MM) -> "DesignSpace":
+               pitch_mm: float = PITCH_MM, clearance_mm: float = CLEARANCE_MM) -> DesignSpace:
         """A design space around ``base`` (concrete values; raises InputError on bad input).
 
         Args:
@@ -224,9 +224,9 @@ class DesignSpace(eqx.Module):
                                           arc_angle=self.arc_length / value)
                 setup = eqx.tree_at(lambda s: s.machine.arm, setup, arm)
             elif v in ("thickness", "depth"):
-                setup = eqx.tree_at(lambda s: getattr(s.machine.arm, v), setup, value)
+                setup = eqx.tree_at(lambda s, v=v: getattr(s.machine.arm, v), setup, value)
             else:
-                setup = eqx.tree_at(lambda s: getattr(s.machine, v), setup, value)
+                setup = eqx.tree_at(lambda s, v=v: getattr(s.machine, v), setup, value)
         if "arc_radius" in self.variables:
             setup = eqx.tree_at(lambda s: s.machine, setup,
                                 setup.machine.with_stroke(self.target_stroke))
@@ -304,7 +304,7 @@ def constraint_jacobian(space: DesignSpace, limits: Constraints, u: Array):
 
 @eqx.filter_jit
 def _constraint_values_and_jacobian(space, limits, u):
-    fn = lambda x: constraints(space, limits, x)  # noqa: E731
+    fn = lambda x: constraints(space, limits, x)
     return fn(u), jax.jacfwd(fn)(u)
 
 
@@ -314,5 +314,5 @@ def properties(space: DesignSpace, u: Array, own_modes: bool = False) -> dict[st
     (frequency on the space's fixed basis, or with ``own_modes`` on the design's own modes)."""
     setup = space.setup(u)
     basis = None if own_modes else space.basis
-    return dict(mass=arm_mass(setup), frequency=first_frequency(setup, basis),
-                stroke=setup.machine.stroke())
+    return {"mass": arm_mass(setup), "frequency": first_frequency(setup, basis),
+                "stroke": setup.machine.stroke()}

@@ -113,8 +113,8 @@ class _Problem:
         c, jac_c = self.constraints(u)
         c, jac_c = np.asarray(c, dtype=float), np.asarray(jac_c, dtype=float)
         value, grad = _augmented(j, np.asarray(g_j, dtype=float), c, jac_c, lam, rho)
-        return dict(j=j, g_j=np.asarray(g_j, dtype=float), c=c, jac_c=jac_c, value=value,
-                    grad=grad, values=values)
+        return {"j": j, "g_j": np.asarray(g_j, dtype=float), "c": c, "jac_c": jac_c, "value": value,
+                    "grad": grad, "values": values}
 
 
 def optimize(value_and_grad: Callable, constraints: Callable, u0, settings: Settings,
@@ -234,7 +234,7 @@ def optimality(u: np.ndarray, point: dict, lam: np.ndarray) -> dict[str, float]:
     c = point["c"]
     grad = point["g_j"] + (point["jac_c"].T @ lam if c.size else 0.0)
     pg = projected_gradient(u, grad)
-    return dict(projected_gradient=float(np.max(np.abs(pg), initial=0.0)),
-                objective_gradient=float(np.max(np.abs(point["g_j"]), initial=0.0)),
-                violation=float(np.max(c, initial=0.0)),
-                complementarity=float(abs(np.dot(lam, c))) if c.size else 0.0)
+    return {"projected_gradient": float(np.max(np.abs(pg), initial=0.0)),
+                "objective_gradient": float(np.max(np.abs(point["g_j"]), initial=0.0)),
+                "violation": float(np.max(c, initial=0.0)),
+                "complementarity": float(abs(np.dot(lam, c))) if c.size else 0.0}

@@ -38,10 +38,10 @@ import numpy as np
 from jax import Array
 from jax.scipy.special import logsumexp
 
-from ..fixed_step import steps_per_cycle
-from ..metrics import smooth_peak_to_peak, rms
-from ..simulate import _simulate
 from ..dobby import build_model
+from ..fixed_step import steps_per_cycle
+from ..metrics import rms, smooth_peak_to_peak
+from ..simulate import _simulate
 from .design import DesignSpace
 
 OBJECTIVES = ("deviation", "deviation_rms", "acceleration")
@@ -89,10 +89,10 @@ def cycle_values(space: DesignSpace, u: Array, speed, steps: int) -> dict[str, A
                     rtol=0.0, atol=0.0, tolerance=1e-9, forward_mode=False)
     s = run.series
     dev, acc = s.deviation, s.acceleration_flexible
-    return dict(deviation=smooth_peak_to_peak(dev, SHARPNESS), deviation_rms=rms(dev),
-                acceleration=smooth_peak_to_peak(acc, SHARPNESS),
-                deviation_pp=jnp.max(dev) - jnp.min(dev), acceleration_pp=jnp.max(acc) - jnp.min(acc),
-                converged=run.converged.astype(float), time=s.t, deviation_series=dev)
+    return {"deviation": smooth_peak_to_peak(dev, SHARPNESS), "deviation_rms": rms(dev),
+                "acceleration": smooth_peak_to_peak(acc, SHARPNESS),
+                "deviation_pp": jnp.max(dev) - jnp.min(dev), "acceleration_pp": jnp.max(acc) - jnp.min(acc),
+                "converged": run.converged.astype(float), "time": s.t, "deviation_series": dev}
 
 
 def batch_values(space: DesignSpace, u: Array, speeds: Array, steps: int) -> dict[str, Array]:

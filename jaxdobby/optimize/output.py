@@ -24,10 +24,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from ..io import write_json, write_text  # noqa: E402
+from ..io import write_json, write_text
 
 MM = 1e3
 
@@ -66,7 +66,8 @@ def write_outputs(directory, history: list[dict], result: dict, design_toml: str
         plt.close(fig)
         from ..io import atomic_write
 
-        paths.append(atomic_write(path, lambda f, data=buf.getvalue(): f.write(data)))
+        data = buf.getvalue()
+        paths.append(atomic_write(path, lambda f, data=data: f.write(data)))
     return paths
 
 

@@ -36,8 +36,8 @@ class Study:
 
     space: DesignSpace
     objective: Objective
-    limits: Constraints = Constraints()
-    settings: Settings = Settings()
+    limits: Constraints = dataclasses.field(default_factory=Constraints)
+    settings: Settings = dataclasses.field(default_factory=Settings)
     gradient: str = "auto"
     steps: int | None = None
 
@@ -83,8 +83,8 @@ def run_study(study: Study, progress: Callable[[str], None] | None = None) -> St
     final = _verified(evaluator, u_final, final_setup)
     _, fixed_basis = evaluator.value(u_final)
     summary = _summary(study, evaluator, result, start, final, fixed_basis, speeds_rpm,
-                       seconds=dict(first_compile_and_solve=t_forward, optimisation=t_optimize,
-                                    total=time.perf_counter() - t0))
+                       seconds={"first_compile_and_solve": t_forward, "optimisation": t_optimize,
+                                    "total": time.perf_counter() - t0})
     setup_out = dataclasses.replace(
         final_setup, operating=dataclasses.replace(final_setup.operating,
                                                    speed=study.objective.speeds[0]))
@@ -123,9 +123,9 @@ def _design(space: DesignSpace, u) -> dict[str, float]:
 
 def _row(space: DesignSpace, study: Study, rec: Record, evaluator: Evaluator) -> dict:
     props = properties(space, jnp.asarray(rec.u))
-    row = dict(iteration=rec.iteration, evaluations=rec.evaluations, seconds=rec.seconds,
-               objective=rec.objective, lagrangian=rec.lagrangian,
-               projected_gradient=rec.projected_gradient, penalty=rec.penalty)
+    row = {"iteration": rec.iteration, "evaluations": rec.evaluations, "seconds": rec.seconds,
+               "objective": rec.objective, "lagrangian": rec.lagrangian,
+               "projected_gradient": rec.projected_gradient, "penalty": rec.penalty}
     row.update(_design(space, rec.u))
     row["arm_mass_kg"] = float(props["mass"])
     row["first_frequency_hz"] = float(props["frequency"])
@@ -153,11 +153,11 @@ def _progress_line(row: dict, study: Study, evaluator: Evaluator) -> str:
 
 
 def _metrics(values: dict, i: int) -> dict[str, float]:
-    return dict(deviation_pp_mm=float(values["deviation_pp"][i]) * 1e3,
-                deviation_smooth_mm=float(values["deviation"][i]) * 1e3,
-                deviation_rms_mm=float(values["deviation_rms"][i]) * 1e3,
-                acceleration_pp_m_s2=float(values["acceleration_pp"][i]),
-                converged=bool(values["converged"][i] > 0.5))
+    return {"deviation_pp_mm": float(values["deviation_pp"][i]) * 1e3,
+                "deviation_smooth_mm": float(values["deviation"][i]) * 1e3,
+                "deviation_rms_mm": float(values["deviation_rms"][i]) * 1e3,
+                "acceleration_pp_m_s2": float(values["acceleration_pp"][i]),
+                "converged": bool(values["converged"][i] > 0.5)}
 
 
 def _summary(study, evaluator, result: Result, start, final, fixed_basis, speeds_rpm,
@@ -166,44 +166,44 @@ def _summary(study, evaluator, result: Result, start, final, fixed_basis, speeds
     per_speed = []
     for i, rpm in enumerate(speeds_rpm):
         s, f = _metrics(start, i), _metrics(final, i)
-        per_speed.append(dict(
-            speed_rpm=rpm, start=s, optimised=f,
-            optimised_fixed_basis=_metrics(fixed_basis, i),
-            improvement_percent=100.0 * (1.0 - f["deviation_pp_mm"] / s["deviation_pp_mm"])))
+        per_speed.append({
+            "speed_rpm": rpm, "start": s, "optimised": f,
+            "optimised_fixed_basis": _metrics(fixed_basis, i),
+            "improvement_percent": 100.0 * (1.0 - f["deviation_pp_mm"] / s["deviation_pp_mm"])})
     u0, u1 = space.initial, jnp.asarray(result.u)
     p0, p1 = (properties(space, u, own_modes=True) for u in (u0, u1))
     limits = study.limits
-    return dict(
-        objective=dict(metric=study.objective.metric, aggregate=study.objective.aggregate,
-                       speeds_rpm=speeds_rpm,
-                       acceleration_weight=study.objective.acceleration_weight),
-        variables=space.labels(),
-        bounds={label: [float(lo / scale), float(hi / scale)] for label, (_, scale), lo, hi in
+    return {
+        "objective": {"metric": study.objective.metric, "aggregate": study.objective.aggregate,
+                       "speeds_rpm": speeds_rpm,
+                       "acceleration_weight": study.objective.acceleration_weight},
+        "variables": space.labels(),
+        "bounds": {label: [float(lo / scale), float(hi / scale)] for label, (_, scale), lo, hi in
                 zip(space.labels(), space.units(), np.asarray(space.lower),
                     np.asarray(space.upper))},
-        constraints=dict(mass_budget_kg=limits.mass_budget,
-                         frequency_floor_hz=limits.frequency_floor,
-                         stroke_mm=float(space.target_stroke) / MM),
-        optimizer=dataclasses.asdict(study.settings), gradient_mode=evaluator.mode,
-        rk4_steps=evaluator.steps,
-        start=_state(space, u0, p0), optimised=_state(space, u1, p1),
-        objective_start=float(result.history[0].objective),
-        objective_optimised=float(result.history[-1].objective),
-        per_speed=per_speed,
-        multipliers={n: float(v) for n, v in zip(limits.names, result.multipliers)},
-        optimality=result.optimality, converged=bool(result.converged),
-        iterations=len(result.history) - 1, evaluations=result.history[-1].evaluations,
-        seconds=seconds,
-        note=("'start'/'optimised' are the modal model of `jaxdobby simulate` (each design on "
+        "constraints": {"mass_budget_kg": limits.mass_budget,
+                         "frequency_floor_hz": limits.frequency_floor,
+                         "stroke_mm": float(space.target_stroke) / MM},
+        "optimizer": dataclasses.asdict(study.settings), "gradient_mode": evaluator.mode,
+        "rk4_steps": evaluator.steps,
+        "start": _state(space, u0, p0), "optimised": _state(space, u1, p1),
+        "objective_start": float(result.history[0].objective),
+        "objective_optimised": float(result.history[-1].objective),
+        "per_speed": per_speed,
+        "multipliers": {n: float(v) for n, v in zip(limits.names, result.multipliers)},
+        "optimality": result.optimality, "converged": bool(result.converged),
+        "iterations": len(result.history) - 1, "evaluations": result.history[-1].evaluations,
+        "seconds": seconds,
+        "note": ("'start'/'optimised' are the modal model of `jaxdobby simulate` (each design on "
               "its own modes); 'optimised_fixed_basis' is the optimiser's model (the starting "
               "design's modes held fixed)"),
-    )
+    }
 
 
 def _state(space, u, props) -> dict:
-    return dict(design=_design(space, u), arm_mass_kg=float(props["mass"]),
-                first_frequency_hz=float(props["frequency"]),
-                stroke_mm=float(props["stroke"]) / MM)
+    return {"design": _design(space, u), "arm_mass_kg": float(props["mass"]),
+                "first_frequency_hz": float(props["frequency"]),
+                "stroke_mm": float(props["stroke"]) / MM}
 
 
 def _profile(setup: Setup):
