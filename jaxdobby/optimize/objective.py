@@ -185,6 +185,9 @@ class Evaluator:
         self.speeds = jnp.asarray(objective.speeds, dtype=float)
         self.steps = choose_steps(space, objective.speeds) if steps is None else int(steps)
         self.mode = gradient_mode(mode, space.size)
+        # The compiled functions take the objective as a static (hashed) argument; the speeds
+        # travel as the traced array above, so a study at another speed reuses the compilation.
+        self._static = dataclasses.replace(objective, speeds=())
         start = _values(space, space.initial, self.speeds, self.steps)
         self.reference = {k: start[k] for k in ("deviation", "deviation_rms", "acceleration")}
 
@@ -201,5 +204,5 @@ class Evaluator:
         """J(u), ∇J(u) (shape (n,)) and the per-speed values."""
         fn = _reverse if self.mode == "reverse" else _forward
         (j, values), grad = fn(self.space, jnp.asarray(u), self.speeds, self.steps,
-                               self.objective, self.reference)
+                               self._static, self.reference)
         return float(j), np.asarray(grad), {k: np.asarray(v) for k, v in values.items()}
