@@ -160,6 +160,18 @@ def _beam(ns: argparse.Namespace) -> int:
     return 0
 
 
+def _add_optimize_arguments(p: argparse.ArgumentParser) -> None:
+    from .optimize.command import add_arguments
+
+    add_arguments(p)
+
+
+def _optimize(ns: argparse.Namespace) -> int:
+    from .optimize.command import run
+
+    return run(ns)
+
+
 def _sobol(argv: Sequence[str]) -> int:
     from .sensitivity.command import main as sobol_main
 
@@ -191,6 +203,12 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", metavar="DIR", help="write sweep.csv, sweep.md and figures")
     sweep.add_argument("--json", action="store_true", help="print the rows as JSON")
     sweep.set_defaults(run=_sweep)
+    opt = sub.add_parser("optimize", help="gradient-based design of the bending arm",
+                         description="Minimise the heald-frame deviation (or another steady-state "
+                                     "metric) over the arm's design variables with exact "
+                                     "gradients, bounds and constraints.")
+    _add_optimize_arguments(opt)
+    opt.set_defaults(run=_optimize)
     beam = sub.add_parser("beam", help="natural frequencies of the default bending arm")
     beam.add_argument("--modes", type=int, default=8, help="number of modes to list (1-30)")
     beam.set_defaults(run=_beam)

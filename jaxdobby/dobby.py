@@ -46,6 +46,7 @@ from .kinematics import (
     ring_link_direction_from_crank,
 )
 from .machine import Machine, OperatingPoint
+from .modal import ModalBasis, modal_basis
 from .rigid_motion import time_derivatives
 
 RING, LINK = 0, 1
@@ -92,22 +93,43 @@ def crank_angle(chain: DobbyLinkage, crank_start, t, speed) -> Array:
                                  law=chain.motion_law)
 
 
-def build_model(machine: Machine, operating: OperatingPoint) -> DobbyModel:
+def _reference_direction(chain: DobbyLinkage) -> Array:
+    """Ring-link direction in the arm's frame at the middle of the lifting index [-]."""
+    (phi_bottom, _), _ = dead_centres(chain)
+    phi_ref = phi_bottom + 0.5 * jnp.pi
+    return (rotation_matrix(arm_angle_from_crank(chain, phi_ref)).T
+            @ ring_link_direction_from_crank(chain, phi_ref))
+
+
+def arm_modes(machine: Machine) -> ModalBasis:
+    """The modes :func:`build_model` reduces the arm with (supports at mid-lift), all DOFs.
+
+    Their shapes, held fixed, are the reduction basis of a design study (``basis=`` of
+    :func:`build_model`).
+    """
+    supports = arm_supports(_reference_direction(machine.chain), machine.ring_link_stiffness)
+    return modal_basis(arm_beam(machine.arm), supports, machine.n_modes)
+
+
+def build_model(machine: Machine, operating: OperatingPoint, basis: Array | None = None
+                ) -> DobbyModel:
     """Assemble the arm, its modes at mid-lift and the chain's reference values (jittable).
 
     The modes use the ring-link direction at the middle of the lifting index (crank a quarter
     turn past the bottom dead centre), a configuration that does not depend on the speed.
+    With ``basis`` (n_dofs, n_modes), e.g. ``arm_modes(reference).shapes``, the arm is reduced
+    on that fixed basis instead of its own modes (:func:`jaxdobby.flexible_body.flexible_body`):
+    no eigen-decomposition on the differentiated path; identical to the modal model when the
+    basis is the machine's own modes.
     """
     chain = machine.chain
     (phi_bottom, _), (theta_bottom, theta_top) = dead_centres(chain)
-    phi_ref = phi_bottom + 0.5 * jnp.pi
-    n_ref = (rotation_matrix(arm_angle_from_crank(chain, phi_ref)).T
-             @ ring_link_direction_from_crank(chain, phi_ref))
+    n_ref = _reference_direction(chain)
     supports = arm_supports(n_ref, machine.ring_link_stiffness)
     s_link = chain.link11_arc_length
     body = flexible_body(arm_beam(machine.arm), supports, machine.n_modes,
                          points=jnp.stack([machine.arm.ring_joint_arc_length, s_link]),
-                         damping_ratio=machine.damping_ratio)
+                         damping_ratio=machine.damping_ratio, basis=basis)
     y_bottom = heald_frame_height_from_arm(chain, theta_bottom)
     y_top = heald_frame_height_from_arm(chain, theta_top)
     return DobbyModel(machine=machine, operating=operating, chain=chain, body=body,

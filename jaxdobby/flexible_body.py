@@ -41,8 +41,10 @@ from collections.abc import Sequence
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
+from . import ritz
 from .beam import Beam
 from .modal import modal_basis
 from .supports import Supports, static_deflection, supported_stiffness
@@ -74,6 +76,7 @@ class FlexibleBody(eqx.Module):
     point_stiffening: Array
     points: Array
     point_arc_lengths: Array
+    damping_matrix: Array | None = None
 
     @property
     def n_modes(self) -> int:
@@ -86,7 +89,10 @@ class FlexibleBody(eqx.Module):
 
     @property
     def damping(self) -> Array:
-        """Modal damping matrix 2ζ ω_i (mass-normalised modes) [1/s]."""
+        """Modal damping matrix [kg/s per unit q]: diag(2ζωᵢ) for mass-normalised modes, or the
+        stored ``damping_matrix`` of a reduction on a fixed basis (:func:`jaxdobby.ritz.modal_damping`)."""
+        if self.damping_matrix is not None:
+            return self.damping_matrix
         return jnp.diag(2.0 * self.damping_ratio * self.frequencies)
 
 
@@ -100,8 +106,8 @@ def _stiffening_matrix(beam, supports, stiffness, shapes, load):
 @eqx.filter_jit
 def flexible_body(beam: Beam, supports: Supports, n_modes: int, *,
                   points: Sequence[float] | Array = (), damping_ratio=0.0,
-                  stiffening: bool = True) -> FlexibleBody:
-    """Reduce a supported beam to its first ``n_modes`` modes and their invariants.
+                  stiffening: bool = True, basis: Array | None = None) -> FlexibleBody:
+    """Reduce a supported beam to its first ``n_modes`` modes (or a fixed basis) and invariants.
 
     Args:
         beam: the beam (body frame, origin = the frame's reference point O).
@@ -111,12 +117,34 @@ def flexible_body(beam: Beam, supports: Supports, n_modes: int, *,
         points: arc lengths [m] of points where forces act or displacements are wanted.
         damping_ratio: modal damping ratio ζ [-], scalar or per mode.
         stiffening: whether to compute the unit geometric-stiffness matrices (static).
+        basis: optional fixed reduction basis Ψ, shape (n_dofs, n_modes), e.g. the mode shapes
+            of a reference design. The beam's matrices are then projected onto Ψ (Ritz
+            reduction, :mod:`jaxdobby.ritz`): ``mass`` and ``stiffness`` are full (k, k)
+            matrices, ``frequencies`` those of the reduced system, the damping is
+            :func:`~jaxdobby.ritz.modal_damping` (``damping_ratio`` must be one number), and Ψ
+            is held constant (``stop_gradient``) so that no eigen-decomposition is
+            differentiated. Rows of constrained DOFs are set to zero.
     """
-    basis = modal_basis(beam, supports, n_modes)
-    phi = basis.shapes
     m = beam.mass_matrix()
-    m_t = beam.translational_mass_matrix()
     k = supported_stiffness(beam, supports)
+    damping = None
+    if basis is None:
+        modes = modal_basis(beam, supports, n_modes)
+        phi, frequencies = modes.shapes, modes.frequencies
+    else:
+        phi = jax.lax.stop_gradient(jnp.asarray(basis, dtype=float))
+        if phi.shape != (beam.n_dofs, n_modes):
+            raise ValueError(f"basis has shape {phi.shape}; expected (n_dofs, n_modes) = "
+                             f"{(beam.n_dofs, n_modes)}")
+        if jnp.ndim(damping_ratio) != 0:
+            raise ValueError("a fixed basis needs one damping ratio for all modes")
+        mask = np.zeros(beam.n_dofs)
+        mask[supports.free_dofs(beam.n_nodes)] = 1.0
+        phi = phi * mask[:, None]
+        mass_r, stiffness_r = phi.T @ m @ phi, phi.T @ k @ phi
+        frequencies = ritz.reduced_frequencies(mass_r, stiffness_r)
+        damping = ritz.modal_damping(mass_r, stiffness_r, jnp.asarray(damping_ratio, float))
+    m_t = beam.translational_mass_matrix()
     fields = beam.rigid_fields()
     s_points = jnp.asarray(points, dtype=float).reshape(-1)
     rows = jax.vmap(beam.point_rows)(s_points) if s_points.size else jnp.zeros((0, 2, beam.n_dofs))
@@ -131,7 +159,7 @@ def flexible_body(beam: Beam, supports: Supports, n_modes: int, *,
         kg = {name: zeros for name in STIFFENING_CASES}
         point_kg = jnp.zeros((s_points.size, 2, n_modes, n_modes))
     return FlexibleBody(
-        frequencies=basis.frequencies,
+        frequencies=frequencies,
         damping_ratio=jnp.broadcast_to(jnp.asarray(damping_ratio, dtype=float), (n_modes,)),
         mass=phi.T @ m @ phi,
         translational_mass=phi.T @ m_t @ phi,
@@ -144,4 +172,5 @@ def flexible_body(beam: Beam, supports: Supports, n_modes: int, *,
         point_stiffening=point_kg,
         points=rows @ phi,
         point_arc_lengths=s_points,
+        damping_matrix=damping,
     )

@@ -68,15 +68,16 @@ class Simulation(eqx.Module):
     num_steps: Array
 
 
-def default_steps(machine: Machine, operating: OperatingPoint) -> int:
+def default_steps(machine: Machine, operating: OperatingPoint, basis: Array | None = None) -> int:
     """RK4 steps per cycle for concrete parameters (Δt = 1.5/ω_max of the arm's modes)."""
-    model = eqx.filter_jit(build_model)(machine, operating)
+    model = eqx.filter_jit(build_model)(machine, operating, basis)
     return steps_per_cycle(float(jnp.max(model.body.frequencies_hz)), float(model.period))
 
 
 def simulate(machine: Machine | None = None, operating: OperatingPoint | None = None, *,
              method: str = "rk4", steps: int | None = None, n_out: int = 3001, rtol=1e-8,
-             atol=1e-12, tolerance=1e-6, forward_mode: bool = False) -> Simulation:
+             atol=1e-12, tolerance=1e-6, forward_mode: bool = False,
+             basis: Array | None = None) -> Simulation:
     """Steady-state heald-frame cycle of ``machine`` at ``operating`` (defaults: DESIGN §6).
 
     Args:
@@ -90,6 +91,8 @@ def simulate(machine: Machine | None = None, operating: OperatingPoint | None = 
             only smooth to about its rtol, so do not ask for much less than 100·rtol.
         forward_mode: make the adaptive saved cycle differentiable in forward mode
             (``jax.jacfwd``) instead of reverse mode.
+        basis: optional fixed reduction basis of the arm, shape (n_dofs, n_modes) (see
+            :func:`jaxdobby.dobby.build_model`); default: the arm's own modes.
     """
     require_x64()
     machine = Machine.default() if machine is None else machine
@@ -97,9 +100,9 @@ def simulate(machine: Machine | None = None, operating: OperatingPoint | None = 
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if method == "rk4" and steps is None:
-        steps = default_steps(machine, operating)
-    return _simulate(machine, operating, method=method, steps=steps, n_out=n_out, rtol=rtol,
-                     atol=atol, tolerance=tolerance, forward_mode=forward_mode)
+        steps = default_steps(machine, operating, basis)
+    return _simulate(machine, operating, basis, method=method, steps=steps, n_out=n_out,
+                     rtol=rtol, atol=atol, tolerance=tolerance, forward_mode=forward_mode)
 
 
 def _adaptive(model, x0, saveat, rtol, atol, adjoint):
@@ -117,8 +120,9 @@ def _save(model, rigid, x):
 
 
 @eqx.filter_jit
-def _simulate(machine, operating, *, method, steps, n_out, rtol, atol, tolerance, forward_mode):
-    model = build_model(machine, operating)
+def _simulate(machine, operating, basis, *, method, steps, n_out, rtol, atol, tolerance,
+              forward_mode):
+    model = build_model(machine, operating, basis)
     k = model.n_modes
     x_rest = jnp.zeros(2 * k)
     if method == "rk4":

@@ -1,0 +1,194 @@
+"""Design optimisation: the design space, constraints, the optimiser on problems with known
+answers, and the command line's input checks (fast; the full studies are in
+test_optimize_studies.py, marked slow)."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxdobby.cli import main
+from jaxdobby.errors import InputError
+from jaxdobby.optimize import (
+    Constraints,
+    DesignSpace,
+    Settings,
+    constraint_jacobian,
+    optimize,
+)
+from jaxdobby.optimize.loop import projected_gradient
+from jaxdobby.parameters import Setup
+
+
+@pytest.fixture(scope="module")
+def space():
+    return DesignSpace.create(Setup(), ["thickness", "depth", "heald_frame_mass"])
+
+
+def test_design_space_maps_and_inverts(space):
+    assert space.labels() == ["thickness", "depth@0mm", "depth@80mm", "depth@153mm",
+                              "depth@201mm", "depth@226mm", "heald_frame_mass"]
+    # The default machine: 6 mm, uniform 40 mm interpolated onto the control points, 12 kg.
+    np.testing.assert_allclose(space.physical(space.initial),
+                               [0.006] + [0.040] * 5 + [12.0], rtol=1e-14)
+    u = jnp.asarray(np.random.default_rng(0).uniform(size=space.size))
+    np.testing.assert_allclose(space.values(space.setup(u)), space.physical(u), rtol=1e-14)
+    lo, hi = np.asarray(space.lower), np.asarray(space.upper)
+    np.testing.assert_allclose(lo, [0.004] + [0.020] * 5 + [8.0])
+    np.testing.assert_allclose(hi, [0.008] + [0.080] * 5 + [18.0])
+    np.testing.assert_array_equal(space.project(jnp.array([-0.5, 0.2, 1.5] + [0.5] * 4)),
+                                  [0.0, 0.2, 1.0] + [0.5] * 4)
+
+
+def test_thickness_bound_is_pitch_minus_clearance():
+    s = DesignSpace.create(Setup(), ["thickness"], pitch_mm=10.0, clearance_mm=3.0)
+    assert float(s.upper[0]) == pytest.approx(0.007)
+    with pytest.raises(InputError, match="pitch"):
+        DesignSpace.create(Setup(), ["thickness"], pitch_mm=3.0, clearance_mm=4.0)
+    with pytest.raises(InputError, match="unknown design variable 'width'"):
+        DesignSpace.create(Setup(), ["width"])
+    with pytest.raises(InputError, match="depth_positions_mm"):
+        DesignSpace.create(Setup(), ["depth"], depth_positions_mm=[0.0, 300.0])
+
+
+def test_arc_radius_keeps_stroke_and_arc_length():
+    # The default stroke (140.07 mm) is the slot's end: another radius cannot keep it.
+    with pytest.raises(InputError, match="stroke 140.07 mm cannot be kept with arc radius 300"):
+        DesignSpace.create(Setup(), ["arc_radius"], bounds={"arc_radius": (300.0, 600.0)})
+    base = Setup(machine=Setup().machine.with_stroke(0.120))
+    s = DesignSpace.create(base, ["arc_radius"], bounds={"arc_radius": (300.0, 600.0)})
+    for u in (0.0, 0.7, 1.0):
+        setup = s.setup(jnp.array([u]))
+        arm = setup.machine.arm
+        # The root solve holds the rigid stroke to its Newton tolerance (1e-12 m measured).
+        assert float(setup.machine.stroke()) == pytest.approx(float(s.target_stroke), abs=1e-9)
+        assert float(arm.arc_radius * arm.arc_angle) == pytest.approx(float(s.arc_length),
+                                                                      rel=1e-14)
+
+
+def test_constraints_and_their_gradients(space):
+    limits = Constraints(mass_budget=0.5, frequency_floor=100.0)
+    u0 = space.initial
+    c, jac = constraint_jacobian(space, limits, u0)
+    mass0 = Setup().machine.arm.mass()
+    assert float(c[0]) == pytest.approx(float(mass0) / 0.5 - 1.0, rel=1e-12)
+    # Mass is linear in t (A = t·d), so its t-derivative is exact: m/t·(t_hi − t_lo)/budget.
+    assert float(jac[0, 0]) == pytest.approx(float(mass0) / 0.006 * 0.004 / 0.5, rel=1e-12)
+    fn = jax.jit(lambda u: constraint_jacobian(space, limits, u)[0])
+    h = 1e-4
+    fd = np.stack([(fn(u0.at[i].add(h)) - fn(u0.at[i].add(-h))) / (2 * h)
+                   for i in range(space.size)], axis=1)
+    # Central differences at h = 1e-4 of the box (4e-7 m of thickness, 6e-6 m of depth):
+    # truncation ~h² = 1e-8; the first coupled frequency comes from eigenvalues spanning
+    # 106 Hz … 9 kHz (λ ratio ~1e7), so its round-off is ~1e-16·1e7/h ~1e-5 at worst.
+    np.testing.assert_allclose(jac, fd, rtol=1e-5, atol=1e-6)
+    assert np.all(np.abs(jac[1, :-1]) > 0)  # the frequency depends on thickness and depth
+
+
+def quadratic(target):
+    target = np.asarray(target)
+
+    def value_and_grad(u):
+        return float(np.sum((u - target) ** 2)), 2.0 * (u - target), {}
+
+    return value_and_grad
+
+
+def linear_constraint(u):
+    # u0 + u1 ≤ 1
+    return np.array([u[0] + u[1] - 1.0]), np.array([[1.0, 1.0]])
+
+
+def no_constraints(u):
+    return np.zeros(0), np.zeros((0, u.shape[0]))
+
+
+def test_lbfgs_augmented_lagrangian_reaches_the_kkt_point():
+    # min (u0−0.9)² + (u1−0.8)² s.t. u0 + u1 ≤ 1 on [0,1]²: u* = (0.55, 0.45), λ* = 0.7.
+    result = optimize(quadratic([0.9, 0.8]), linear_constraint, np.array([0.1, 0.1]),
+                      Settings(optimizer="lbfgs", steps=100, tolerance=1e-7))
+    assert result.converged
+    np.testing.assert_allclose(result.u, [0.55, 0.45], atol=1e-6)
+    np.testing.assert_allclose(result.multipliers, [0.7], atol=1e-5)
+    assert result.optimality["projected_gradient"] < 1e-6
+    assert result.optimality["violation"] < 1e-8
+
+
+@pytest.mark.parametrize("optimizer", ["lbfgs", "adam"])
+def test_projection_holds_the_bounds(optimizer):
+    # Unconstrained minimum at (1.9, 0.3): the box solution is (1, 0.3) with u0 at its bound.
+    result = optimize(quadratic([1.9, 0.3]), no_constraints, np.array([0.1, 0.1]),
+                      Settings(optimizer=optimizer, steps=400, tolerance=1e-6))
+    assert result.converged
+    assert result.u[0] == 1.0
+    assert result.u[1] == pytest.approx(0.3, abs=1e-5)
+    assert all(0.0 <= r.u.min() and r.u.max() <= 1.0 for r in result.history)
+
+
+def test_projected_gradient():
+    u = np.array([0.0, 0.0, 1.0, 1.0, 0.5])
+    g = np.array([1.0, -1.0, -1.0, 1.0, 2.0])
+    np.testing.assert_array_equal(projected_gradient(u, g), [0.0, -1.0, 0.0, 1.0, 2.0])
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["--vars", "thickness,width"], "unknown design variable 'width'"),
+    (["--speeds", "800,0"], "speed = 0"),
+    (["--speeds", "fast"], "--speeds must be a comma-separated list"),
+    (["--bounds", "thickness=8:4"], "bounds of thickness"),
+    (["--bounds", "thickness=7:8"], "starting thickness = 6 mm is outside its bounds"),
+    (["--bounds", "thickness"], "--bounds"),
+    (["--mass-budget", "-1"], "mass budget = -1.0 kg is outside the valid range"),
+    (["--pitch", "4", "--clearance", "5"], "clearance = 5.0 mm is outside the valid range"),
+    (["--steps", "-3"], "--steps = -3 is outside the valid range"),
+    (["--learning-rate", "0"], "learning rate"),
+    (["--vars", "depth", "--depth-positions", "0,300"], "depth_positions_mm"),
+])
+def test_bad_input_exits_2_naming_the_field(argv, field, capsys):
+    assert main(["optimize", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("jaxdobby optimize: error: ")
+    assert field in err[0]
+
+
+def test_bad_problem_file(tmp_path, capsys):
+    path = tmp_path / "problem.toml"
+    path.write_text('[constraints]\nmass_budget = 0.4\n')
+    assert main(["optimize", "--problem", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown key 'mass_budget' in [constraints]" in err and "mass_budget_kg" in err
+    path.write_text('[objective]\nspeeds_rpm = [800, -5]\n')
+    assert main(["optimize", "--problem", str(path)]) == 2
+    assert "speed = -5" in capsys.readouterr().err
+
+
+def test_problem_file_reaches_the_study(tmp_path):
+    import argparse
+
+    from jaxdobby.cli import build_parser
+    from jaxdobby.optimize.command import build_study
+
+    path = tmp_path / "problem.toml"
+    path.write_text(json.dumps({}).replace("{}", "") + """
+[objective]
+speeds_rpm = [800, 1200]
+aggregate = "mean"
+[variables]
+names = ["thickness"]
+thickness_mm = [5.0, 7.5]
+[constraints]
+mass_budget_kg = 0.5
+[optimizer]
+name = "adam"
+steps = 3
+""")
+    ns = build_parser().parse_args(["optimize", "--problem", str(path), "--steps", "4"])
+    assert isinstance(ns, argparse.Namespace)
+    study = build_study(ns)
+    assert study.objective.aggregate == "mean"
+    np.testing.assert_allclose(study.objective.speeds, np.array([800.0, 1200.0]) * np.pi / 30)
+    assert float(study.space.upper[0]) == pytest.approx(0.0075)
+    assert study.limits.mass_budget == 0.5 and study.limits.frequency_floor is None
+    assert study.settings.optimizer == "adam" and study.settings.steps == 4  # the flag wins
