@@ -78,7 +78,7 @@ def _dobby_spec():
 @pytest.mark.parametrize("text, expected", [
     ("[parameters\nspeed = [1, 2]", "not valid TOML"),
     ("[parameters]\nspeedd = [400, 1200]", "parameter 'speedd': unknown name; valid names are "
-     "['speed', 'stroke', 'thickness', 'warp_force']"),
+     "['arc_angle', 'arc_radius', 'blade_inertia',"),
     ("[parameters]\nspeed = [1200, 400]", "parameter 'speed': lower bound must be < upper bound "
      "[r/min]; got [1200.0, 400.0]"),
     ("[parameters]\nstroke = [80, 80]",

@@ -5,7 +5,8 @@ The pipeline, each stage in its own module:
 * ``space``: :class:`ParameterSpace` (names, bounds and units of the varied parameters, SALib's
   problem dict, the Saltelli/Sobol' design, the row → SI mapping);
 * ``models``: :class:`ModelSpec`, how a model plugs in (a registry of its parameters and a
-  ``build(space) -> model`` factory), with the Ishigami test model and the dobby's registry;
+  ``build(space) -> model`` factory), with the Ishigami test model;
+* ``dobby``: :data:`DOBBY`, the dobby's steady-state metrics as a Sobol model;
 * ``batch``: :func:`evaluate`, fixed-size chunks sharded over the local devices
   (``jax.shard_map``) and over processes (``jax.distributed``);
 * ``store``: the output directory, atomic chunk files and resume;
@@ -36,10 +37,12 @@ from .command import SobolRun as SobolRun
 from .command import add_arguments as add_arguments
 from .command import main as main
 from .command import run_sobol as run_sobol
+from .dobby import DOBBY as DOBBY
+from .dobby import DOBBY_PARAMETERS as DOBBY_PARAMETERS
+from .dobby import dobby_model as dobby_model
 from .failures import FailedSamplesError as FailedSamplesError
 from .failures import FailureReport as FailureReport
 from .failures import SampleFailure as SampleFailure
-from .models import DOBBY_PARAMETERS as DOBBY_PARAMETERS
 from .models import ISHIGAMI as ISHIGAMI
 from .models import ModelSpec as ModelSpec
 from .models import ishigami as ishigami

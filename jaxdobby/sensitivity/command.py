@@ -35,6 +35,7 @@ import numpy as np
 
 from .analysis import SobolResult, analyze, check_settings
 from .batch import Evaluation, Progress, check_chunk_size, evaluate, local_devices
+from .dobby import DOBBY
 from .failures import POLICIES, FailedSamplesError
 from .models import ISHIGAMI, ModelSpec
 from .plots import save_figures
@@ -42,8 +43,8 @@ from .progress import ProgressBar
 from .space import ParameterSpace, check_base_samples
 from .store import ChunkStore, atomic_write, samples_digest, write_json
 
-MODELS: dict[str, ModelSpec] = {"ishigami": ISHIGAMI}
-"""Models ``--model`` can name; the dobby model registers itself here as ``"dobby"``."""
+MODELS: dict[str, ModelSpec] = {"dobby": DOBBY, "ishigami": ISHIGAMI}
+"""Models ``--model`` can name (the dobby by default; Ishigami for checking the pipeline)."""
 
 DEFAULT_CHUNK = 512
 """Default rows per chunk (rounded up to a multiple of the device count)."""
@@ -230,6 +231,7 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
         raise ValueError(f"on_failure must be one of {POLICIES}; got {config.on_failure!r}")
     check_settings(num_resamples=config.num_resamples, conf_level=config.conf_level)
     space = build_space(config, model)
+    fn = model.build(space)  # may refuse the problem (e.g. bounds the model cannot run)
     initialize_distributed(config)
     n_dev = len(local_devices(config.devices))
     chunk = config.chunk_size or -(-DEFAULT_CHUNK // n_dev) * n_dev
@@ -250,7 +252,7 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
     store.create()
 
     t0 = time.perf_counter()
-    evaluation = evaluate(model.build(space), samples, chunk_size=chunk, devices=config.devices,
+    evaluation = evaluate(fn, samples, chunk_size=chunk, devices=config.devices,
                           store=store, progress=progress)
     seconds = time.perf_counter() - t0
     writer = jax.process_index() == 0

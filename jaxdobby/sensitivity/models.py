@@ -11,9 +11,7 @@ sample*. The pipeline vmaps and jits ``model``; it must not raise at run time (s
 
 ``ISHIGAMI`` is the test model (Ishigami & Homma 1990): f = sin x1 + a sin² x2 + b x3⁴ sin x1
 with x_i uniform on [−π, π]; its Sobol indices are known in closed form (Sobol' & Levitan 1999).
-``DOBBY_PARAMETERS`` is the registry of the dobby study of DESIGN.md §6 (speed 400–1200 r/min,
-warp force peak 345–1035 N, stroke 80–140 mm, arm thickness 6–8 mm); the dobby's ``build``
-comes with the dobby model.
+The dobby's spec is :data:`jaxdobby.sensitivity.dobby.DOBBY`.
 """
 
 from __future__ import annotations
@@ -78,16 +76,3 @@ def _build_ishigami(space: ParameterSpace) -> Model:
 
 ISHIGAMI = ModelSpec("ishigami", ISHIGAMI_PARAMETERS, ("x1", "x2", "x3"), _build_ishigami)
 """Ishigami (a = 7, b = 0.1) as a Sobol model with one metric ``"y"``: the pipeline's test case."""
-
-
-DOBBY_PARAMETERS = {
-    "speed": ParameterSpec("speed", "r/min", (400.0, 1200.0), 2 * math.pi / 60, (0.0, math.inf),
-                           "loom (main-shaft) speed"),
-    "warp_force": ParameterSpec("warp_force", "N", (345.0, 1035.0), 1.0, (0.0, math.inf),
-                                "peak warp force on the heald frame"),
-    "stroke": ParameterSpec("stroke", "mm", (80.0, 140.0), 1e-3, (0.0, math.inf),
-                            "heald frame stroke (shedding distance)"),
-    "thickness": ParameterSpec("thickness", "mm", (6.0, 8.0), 1e-3, (0.0, math.inf),
-                               "bending-arm plate thickness"),
-}
-"""The dobby study's parameters and default bounds (DESIGN.md §6, 'Sobol intervals')."""

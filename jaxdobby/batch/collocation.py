@@ -1,0 +1,164 @@
+"""Three-stage Gauss–Legendre collocation for M(q) q̈ = F(t, q, q̇), and its stage solver.
+
+The method (order 6, A-stable, symmetric: no numerical damping of resolved modes; Hairer &
+Wanner, *Solving ODEs II*, §IV.5) applied to the second-order system through its stage
+accelerations Aᵢ ≈ q̈(t_n + cᵢh):
+
+    Vᵢ = v_n + h Σⱼ aᵢⱼ Aⱼ,   Qᵢ = q_n + cᵢ h v_n + h² Σⱼ (a²)ᵢⱼ Aⱼ,
+    M(Qᵢ) Aᵢ = F(t_n + cᵢh, Qᵢ, Vᵢ),
+    q_{n+1} = q_n + h v_n + h² Σⱼ (bᵀa)ⱼ Aⱼ,   v_{n+1} = v_n + h Σⱼ bⱼ Aⱼ.
+
+The stage equations are solved by simplified Newton iterations with one matrix per step,
+M̄ + h a⊗C̄ + h² a²⊗K̄ (3k × 3k). Diagonalising the Butcher matrix a = T Λ T⁻¹ (one real
+eigenvalue, one complex pair) splits it into a real k × k system M̄ + hγC̄ + h²γ²K̄ and a
+complex one (Butcher 1976; Hairer & Wanner §IV.8), both factorised here without pivoting: their
+real parts are M̄ plus small multiples of C̄ and K̄, symmetric positive definite up to the small
+gyroscopic terms, for which Gaussian elimination without pivoting is stable (Higham, *Accuracy and
+Stability of Numerical Algorithms*, §10.4). Complex numbers are carried as (real, imaginary)
+pairs of float64 arrays (faster on a CPU than complex128 here).
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+_R15 = math.sqrt(15.0)
+NODES = np.array([0.5 - _R15 / 10.0, 0.5, 0.5 + _R15 / 10.0])
+"""cᵢ, the Gauss points on [0, 1]."""
+MATRIX = np.array([[5 / 36, 2 / 9 - _R15 / 15, 5 / 36 - _R15 / 30],
+                   [5 / 36 + _R15 / 24, 2 / 9, 5 / 36 - _R15 / 24],
+                   [5 / 36 + _R15 / 30, 2 / 9 + _R15 / 15, 5 / 36]])
+"""aᵢⱼ."""
+WEIGHTS = np.array([5 / 18, 4 / 9, 5 / 18])
+"""bⱼ."""
+MATRIX2 = MATRIX @ MATRIX
+"""(a²)ᵢⱼ: the stage displacements' weights."""
+WEIGHTS2 = WEIGHTS @ MATRIX
+"""(bᵀa)ⱼ: the end displacement's weights."""
+
+
+def _transform():
+    lam, vec = np.linalg.eig(MATRIX)
+    real = int(np.argmin(np.abs(lam.imag)))
+    cplx = int(np.argmax(lam.imag))
+    v_real = vec[:, real] / vec[np.argmax(np.abs(vec[:, real])), real]
+    t = np.stack([v_real.real, vec[:, cplx], vec[:, cplx].conj()], axis=1)
+    return lam[real].real, lam[cplx], t, np.linalg.inv(t)
+
+
+GAMMA, LAMBDA, T, T_INV = _transform()
+"""a = T diag(γ, λ, λ̄) T⁻¹: real eigenvalue γ, complex λ (Im > 0), column 0 of T real."""
+
+
+def _lagrange(x):
+    return np.array([np.prod([(x - NODES[m]) / (NODES[i] - NODES[m]) for m in range(3) if m != i])
+                     for i in range(3)])
+
+
+EXTRAPOLATE = np.stack([_lagrange(1.0 + c) for c in NODES])
+"""Predictor: the quadratic through the previous step's Aᵢ, evaluated at this step's nodes."""
+
+
+def stage_states(q, v, acc, h):
+    """(Qᵢ, Vᵢ), each (3, k), from q_n, v_n (k,) and the stage accelerations (3, k)."""
+    vel = v[None] + h * jnp.asarray(MATRIX) @ acc
+    pos = q[None] + h * jnp.asarray(NODES)[:, None] * v[None] + h**2 * jnp.asarray(MATRIX2) @ acc
+    return pos, vel
+
+
+def advance(q, v, acc, h):
+    """(q_{n+1}, v_{n+1}) from the converged stage accelerations."""
+    return (q + h * v + h**2 * jnp.asarray(WEIGHTS2) @ acc, v + h * jnp.asarray(WEIGHTS) @ acc)
+
+
+# -- small dense linear algebra, unrolled (k is static and small) -------------------------------
+def lu(a: Array):
+    """LU factors (unit lower, upper) of a real (k, k) matrix without pivoting, as one array with
+    the multipliers below the diagonal and the reciprocal of U's diagonal on it."""
+    k = a.shape[0]
+    m = [[a[i, j] for j in range(k)] for i in range(k)]
+    for p in range(k):
+        inv = 1.0 / m[p][p]
+        m[p][p] = inv
+        for i in range(p + 1, k):
+            m[i][p] = m[i][p] * inv
+            for j in range(p + 1, k):
+                m[i][j] = m[i][j] - m[i][p] * m[p][j]
+    return jnp.stack([jnp.stack(row) for row in m])
+
+
+def lu_solve(f: Array, b: Array) -> Array:
+    """Solve with :func:`lu` factors; ``b`` is (k,) or (k, m)."""
+    k = f.shape[0]
+    y = [b[i] for i in range(k)]
+    for i in range(k):
+        for j in range(i):
+            y[i] = y[i] - f[i, j] * y[j]
+    for i in reversed(range(k)):
+        for j in range(i + 1, k):
+            y[i] = y[i] - f[i, j] * y[j]
+        y[i] = y[i] * f[i, i]
+    return jnp.stack(y)
+
+
+def clu(re: Array, im: Array):
+    """:func:`lu` for the complex matrix re + i·im, returned as (real, imaginary) parts."""
+    k = re.shape[0]
+    mr = [[re[i, j] for j in range(k)] for i in range(k)]
+    mi = [[im[i, j] for j in range(k)] for i in range(k)]
+    for p in range(k):
+        norm = mr[p][p] ** 2 + mi[p][p] ** 2
+        ir, ii = mr[p][p] / norm, -mi[p][p] / norm
+        mr[p][p], mi[p][p] = ir, ii
+        for i in range(p + 1, k):
+            lr = mr[i][p] * ir - mi[i][p] * ii
+            li = mr[i][p] * ii + mi[i][p] * ir
+            mr[i][p], mi[i][p] = lr, li
+            for j in range(p + 1, k):
+                mr[i][j] = mr[i][j] - (lr * mr[p][j] - li * mi[p][j])
+                mi[i][j] = mi[i][j] - (lr * mi[p][j] + li * mr[p][j])
+    return (jnp.stack([jnp.stack(row) for row in mr]), jnp.stack([jnp.stack(row) for row in mi]))
+
+
+def clu_solve(fr: Array, fi: Array, br: Array, bi: Array):
+    """Solve with :func:`clu` factors for the right-hand side br + i·bi ((k,) or (k, m))."""
+    k = fr.shape[0]
+    yr, yi = [br[i] for i in range(k)], [bi[i] for i in range(k)]
+    for i in range(k):
+        for j in range(i):
+            yr[i], yi[i] = (yr[i] - (fr[i, j] * yr[j] - fi[i, j] * yi[j]),
+                            yi[i] - (fr[i, j] * yi[j] + fi[i, j] * yr[j]))
+    for i in reversed(range(k)):
+        for j in range(i + 1, k):
+            yr[i], yi[i] = (yr[i] - (fr[i, j] * yr[j] - fi[i, j] * yi[j]),
+                            yi[i] - (fr[i, j] * yi[j] + fi[i, j] * yr[j]))
+        yr[i], yi[i] = (yr[i] * fr[i, i] - yi[i] * fi[i, i], yr[i] * fi[i, i] + yi[i] * fr[i, i])
+    return jnp.stack(yr), jnp.stack(yi)
+
+
+class StageSolver:
+    """The simplified-Newton matrix of one step, factorised: solves
+    (I⊗M + h a⊗C + h² a²⊗K) x = r for stage right-hand sides r of shape (3, k) or (3, k, m)."""
+
+    def __init__(self, mass, damping, stiffness, h):
+        g, lam = GAMMA, LAMBDA
+        self.real = lu(mass + h * g * damping + (h * g) ** 2 * stiffness)
+        l2 = lam * lam
+        re = mass + h * lam.real * damping + h * h * l2.real * stiffness
+        im = h * lam.imag * damping + h * h * l2.imag * stiffness
+        self.cre, self.cim = clu(re, im)
+
+    def solve(self, r: Array) -> Array:
+        ti = T_INV
+        z0 = sum(float(ti[0, i].real) * r[i] for i in range(3))
+        zr = sum(float(ti[1, i].real) * r[i] for i in range(3))
+        zi = sum(float(ti[1, i].imag) * r[i] for i in range(3))
+        w0 = lu_solve(self.real, z0)
+        wr, wi = clu_solve(self.cre, self.cim, zr, zi)
+        return jnp.stack([float(T[i, 0].real) * w0
+                          + 2.0 * (float(T[i, 1].real) * wr - float(T[i, 1].imag) * wi)
+                          for i in range(3)])

@@ -1,0 +1,163 @@
+"""Everything of one cycle that does not depend on the elastic state, tabulated once per sample.
+
+**Normalised time.** With τ = t/T ∈ [0, 1) the phase of the heald-frame cycle, the modulator's
+crank angle is a function of τ alone (ψ = speed·t = 4πτ), so the rigid arm angle θ(τ), its
+τ-derivatives θ', θ'' and the ring link's direction n(τ) depend on the linkage only, not on the
+speed, the stroke setting or the arm; in physical time ω = θ'/T and α = θ''/T². Every sample of
+a batch therefore uses the same grid of τ (a fixed number of steps per cycle, a static size), and
+under ``jax.vmap`` the rigid-arm tables of :func:`rigid_arm` are computed once per batch when the
+linkage is not sampled (they do not depend on batched values).
+
+**Kane's terms.** The arm's part of :func:`jaxdobby.dobby.equations_at` is linear in (q, q̇)
+with coefficients that are combinations of constant modal matrices (:func:`arm_terms`):
+
+    K(τ) = K_b + ω²(K_ω − M_t) + α(G − K_α) + a_x K_x + a_y K_y + f_x K_P,x + f_y K_P,y
+           + k₉ R_rᵀ (n nᵀ − n₀ n₀ᵀ) R_r,
+    C(τ) = C_b + 2ω G,     f(τ) = ω² f_ω − α f_α + F_tr a,
+
+(:func:`jaxdobby.floating_frame.kane_terms` with the ring link's correction of
+:mod:`jaxdobby.dobby`), a = Aᵀ(0, −g) the gravity field in the body frame and f the preload of
+link 11 from rigid inverse dynamics (:func:`jaxdobby.batch.chain.chain_terms` at q = 0). K(τ) and
+f(τ) are tabulated at the collocation nodes τ = (n + cᵢ)/N by one contraction of a stack of
+matrices with their coefficients.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jax import Array
+
+from ..dobby import LINK, RING, DobbyModel, crank_angle
+from ..kinematics import arm_angle_from_crank, ring_link_direction_from_crank
+from ..rigid_motion import time_derivatives
+from .chain import Downstream, Frame, chain_terms
+from .collocation import NODES
+
+REFERENCE_SPEED = 4.0 * jnp.pi
+"""Loom speed [rad/s] whose cycle lasts 1 s: rigid tables are evaluated with it at t = τ."""
+
+
+class ArmTerms(eqx.Module):
+    """Kane's modal terms of one arm (see the module docstring); k modes.
+
+    Attributes:
+        mass: M_b (k, k). damping: C_b (k, k) [1/s]. gyroscopic: G (k, k).
+        stiffness: the stack [K_b − k₉R_rᵀn₀n₀ᵀR_r, K_ω − M_t, G − K_α, K_x, K_y, K_P,x, K_P,y,
+            k₉R_rᵀE₁₁R_r, k₉R_rᵀ(E₁₂ + E₂₁)R_r, k₉R_rᵀE₂₂R_r], (10, k, k).
+        centrifugal: f_ω (k,). euler: f_α (k,). translation: F_tr (k, 2).
+        gravity: g₀ [m/s²].
+    """
+
+    mass: Array
+    damping: Array
+    gyroscopic: Array
+    stiffness: Array
+    centrifugal: Array
+    euler: Array
+    translation: Array
+    gravity: Array
+
+
+def arm_terms(model: DobbyModel) -> ArmTerms:
+    """:class:`ArmTerms` of ``model`` (two-way coupling)."""
+    b, m = model.body, model.machine
+    kg = b.stiffening
+    rows = b.points[RING]
+    k9 = m.ring_link_stiffness
+    n0 = model.ring_direction_ref
+
+    def ring(e):
+        return k9 * rows.T @ e @ rows
+
+    stack = jnp.stack([
+        b.stiffness - ring(jnp.outer(n0, n0)),
+        kg["centrifugal"] - b.translational_mass,
+        b.gyroscopic - kg["euler"],
+        kg["x"], kg["y"],
+        b.point_stiffening[LINK, 0], b.point_stiffening[LINK, 1],
+        ring(jnp.array([[1.0, 0.0], [0.0, 0.0]])),
+        ring(jnp.array([[0.0, 1.0], [1.0, 0.0]])),
+        ring(jnp.array([[0.0, 0.0], [0.0, 1.0]])),
+    ])
+    return ArmTerms(mass=b.mass, damping=b.damping, gyroscopic=b.gyroscopic, stiffness=stack,
+                    centrifugal=b.centrifugal, euler=b.euler, translation=b.translation,
+                    gravity=m.gravity)
+
+
+class RigidArm(eqx.Module):
+    """The rigid arm at phases τ (any shape): cos θ, sin θ, θ' [rad], θ'' [rad] per unit τ, and
+    the ring link's direction in the arm's body frame, shape τ.shape + (2,)."""
+
+    phase: Array
+    cos: Array
+    sin: Array
+    rate: Array
+    accel: Array
+    ring: Array
+
+
+def rigid_arm(model: DobbyModel, phase) -> RigidArm:
+    """:class:`RigidArm` at phases τ (speed-free; see the module docstring)."""
+    chain = model.chain
+
+    def one(tau):
+        def theta(t):
+            return arm_angle_from_crank(chain, crank_angle(chain, model.crank_start, t,
+                                                           REFERENCE_SPEED))
+
+        th, th1, th2 = time_derivatives(theta, tau)
+        n = ring_link_direction_from_crank(chain, crank_angle(chain, model.crank_start, tau,
+                                                              REFERENCE_SPEED))
+        c, s = jnp.cos(th), jnp.sin(th)
+        return RigidArm(tau, c, s, th1, th2, jnp.stack([c * n[0] + s * n[1], -s * n[0] + c * n[1]]))
+
+    phase = jnp.asarray(phase, dtype=float)
+    flat = jax.vmap(one)(phase.reshape(-1))
+    return jax.tree.map(lambda a: a.reshape(phase.shape + a.shape[1:]), flat)
+
+
+class StageTables(eqx.Module):
+    """One sample's cycle at the collocation nodes, leading axes (N, 3) (or any shape).
+
+    Attributes:
+        frame: the arm frame (:class:`~jaxdobby.batch.chain.Frame`) in physical time.
+        stiffness: K(τ) (..., k, k). force: f(τ) (..., k) (see the module docstring).
+        height, velocity: rigid heald-frame height [m] and velocity [m/s].
+    """
+
+    frame: Frame
+    stiffness: Array
+    force: Array
+    height: Array
+    velocity: Array
+
+
+def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTables:
+    """:class:`StageTables` at the phases of ``rigid`` for a cycle of ``period`` T [s]."""
+    omega, alpha = rigid.rate / period, rigid.accel / period**2
+    frame = Frame(rigid.cos, rigid.sin, omega, alpha, rigid.phase)
+    shape = rigid.phase.shape
+    zero = jnp.zeros(shape + (2,))
+    ct = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(
+        ds, jax.tree.map(lambda a: a.reshape(-1), frame), zero.reshape(-1, 2),
+        zero.reshape(-1, 2))
+    ct = jax.tree.map(lambda a: a.reshape(shape + a.shape[1:]), ct)
+    link = ct.grad_body * ct.phi[..., None]  # link-11 force on the arm, body frame [N]
+    g0 = arm.gravity
+    field = jnp.stack([-g0 * rigid.sin, -g0 * rigid.cos], axis=-1)
+    n = rigid.ring
+    coef = jnp.stack([jnp.ones(shape), omega**2, alpha, field[..., 0], field[..., 1],
+                      link[..., 0], link[..., 1], n[..., 0]**2, n[..., 0] * n[..., 1],
+                      n[..., 1]**2], axis=-1)
+    stiffness = jnp.einsum("...s,sij->...ij", coef, arm.stiffness)
+    force = (omega[..., None]**2 * arm.centrifugal - alpha[..., None] * arm.euler
+             + field @ arm.translation.T)
+    return StageTables(frame=frame, stiffness=stiffness, force=force, height=ct.height,
+                       velocity=ct.slope * ct.beta_rate)
+
+
+def node_phases(steps: int) -> Array:
+    """τ at the collocation nodes of ``steps`` equal steps per cycle, shape (steps, 3)."""
+    return (jnp.arange(steps)[:, None] + jnp.asarray(NODES)[None, :]) / steps

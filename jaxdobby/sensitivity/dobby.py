@@ -1,0 +1,105 @@
+"""The dobby as a Sobol model: any scalar float parameter of the machine, steady-state metrics.
+
+:data:`DOBBY` plugs the coupled dobby model into the Sobol pipeline (:class:`ModelSpec`). Its
+registry is :data:`jaxdobby.parameters.PARAMETERS` (every scalar float parameter of the machine
+and the operating point, in the users' units of the configuration file); the default problem is
+the source study's: speed 400–1200 r/min, peak warp force 345–1035 N, stroke 80–140 mm and arm
+plate thickness 6–8 mm (DESIGN.md §6). Parameters a problem does not vary keep the values of
+the base machine (the built-in default unless :func:`dobby_model` is given another).
+
+One sample row is evaluated by :func:`jaxdobby.batch.steady_state_metrics` (the two-way coupled
+equations, periodic steady state by collocation and chord shooting, extremes reduced inside the
+solve) and returns, in the users' units of ``jaxdobby simulate``'s summary:
+
+``deviation_pp_mm``, ``deviation_max_mm``, ``deviation_min_mm`` (heald frame displacement
+deviation, flexible − rigid), ``velocity_deviation_amp_m_s`` and ``acceleration_amp_m_s2``
+(peak-to-peak ranges over the cycle), plus ``ok`` (False when the periodic state did not
+converge, the chain left its workspace, or a metric is not finite: a *failed sample*).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from ..batch import DEFAULT_STEPS, steady_state_metrics
+from ..parameters import PARAMETERS, Setup, apply
+from ..stroke import stroke_range
+from .models import ModelSpec
+from .space import ParameterSpace, ParameterSpec
+
+VECTOR_PARAMETERS = ("depth_positions",)
+"""Parameters that are lists (not sampled; ``depth`` is sampled as a uniform depth)."""
+
+METRIC_UNITS = {
+    "deviation_pp": ("deviation_pp_mm", 1e3),
+    "deviation_max": ("deviation_max_mm", 1e3),
+    "deviation_min": ("deviation_min_mm", 1e3),
+    "velocity_deviation_amp": ("velocity_deviation_amp_m_s", 1.0),
+    "acceleration_amp": ("acceleration_amp_m_s2", 1.0),
+}
+"""Batch metric (SI) → (output name, factor to the users' unit)."""
+
+DOBBY_PARAMETERS: dict[str, ParameterSpec] = {
+    p.name: ParameterSpec(p.name, unit=p.unit or "1", bounds=p.bounds, si_scale=p.scale,
+                          limits=(float(p.limits[0]), float(p.limits[1])), description=p.description)
+    for p in PARAMETERS.values() if p.name not in VECTOR_PARAMETERS
+}
+"""Every scalar float parameter of the model, with the default Sobol bounds where it has one."""
+
+DEFAULT_PROBLEM = ("speed", "warp_force", "stroke", "thickness")
+"""The source study's four parameters (DESIGN.md §6)."""
+
+
+def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
+                tolerance: float = 1e-7):
+    """``build(space)`` for the dobby: a pure function of one sample row (see the module).
+
+    Args:
+        base: the machine and operating point the samples start from (default: built-in).
+        steps: collocation steps per cycle (:func:`jaxdobby.batch.steady_state_metrics`).
+        tolerance: relative periodicity residual of the steady state.
+    """
+    def build(space: ParameterSpace):
+        names, scales = space.names, space.si_scales
+        start = Setup() if base is None else base  # built here: needs float64 switched on
+
+        check_strokes(space, start)
+
+        def model(x):
+            values = {n: x[i] * scales[i] for i, n in enumerate(names)}
+            reachable = jnp.array(True)
+            if "stroke" in values:
+                # A stroke the slot cannot give (possible when the linkage is sampled too) is a
+                # failed sample, not a run-time error that would stop the whole batch: solve
+                # for the nearest reachable stroke and flag the sample.
+                other = apply(start, {n: v for n, v in values.items() if n != "stroke"})
+                lo, hi = stroke_range(other.machine.chain)
+                target = values["stroke"]
+                reachable = (target >= lo) & (target <= hi)
+                values["stroke"] = jnp.clip(target, lo, hi)
+            out = steady_state_metrics(apply(start, values), steps=steps, tolerance=tolerance)
+            metrics = {name: out[key] * factor for key, (name, factor) in METRIC_UNITS.items()}
+            metrics["ok"] = out["ok"] & reachable
+            return metrics
+
+        return model
+
+    return build
+
+
+def check_strokes(space: ParameterSpace, base: Setup) -> None:
+    """Refuse stroke bounds the base machine's slot cannot give (when no linkage dimension is
+    sampled, the reachable range is fixed and known before the run)."""
+    if "stroke" not in space.names or any(PARAMETERS[n].section == "linkage"
+                                          for n in space.names):
+        return
+    lo, hi = (float(v) * 1e3 for v in stroke_range(base.machine.chain))
+    b_lo, b_hi = space.bounds[space.names.index("stroke")]
+    if b_lo < lo or b_hi > hi:
+        raise ValueError(f"parameter 'stroke': bounds must lie in the reachable range "
+                         f"[{lo:.2f}, {hi:.2f}] mm of this machine's slot; got "
+                         f"[{b_lo}, {b_hi}]")
+
+
+DOBBY = ModelSpec("dobby", DOBBY_PARAMETERS, DEFAULT_PROBLEM, dobby_model())
+"""The dobby (built-in default machine) as a Sobol model."""
