@@ -79,7 +79,9 @@ def test_scipy_steady_state_matches_adaptive_jaxdobby():
 
 
 def _run(script, tmp_path, *args):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    # a persistent compilation cache shared by the scripts' processes and reruns
+    env = dict(os.environ, PYTHONPATH=str(ROOT),
+               JAXDOBBY_BENCH_CACHE=str(ROOT / ".pytest_cache" / "xla"))
     p = subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), "--quick", "--out",
                         str(tmp_path), *args], cwd=ROOT, env=env, capture_output=True,
                        text=True, timeout=900, check=False)
@@ -112,6 +114,8 @@ def test_bench_simulate_quick(tmp_path):
     assert (tmp_path / data["figure"]).stat().st_size > 1000
 
 
+@pytest.mark.slow  # ~5 min on 2 busy cores with an empty cache: 3 processes compile the batch
+# path and 4 pool workers the model build; the scipy side needs ~10 s per sample even at 1 mode
 def test_bench_batch_quick(tmp_path):
     pytest.importorskip("jaxdobby.batch")
     _run("bench_batch.py", tmp_path)
@@ -129,6 +133,7 @@ def test_bench_batch_quick(tmp_path):
     assert data["accuracy"]["jaxdobby_batch_max_error"] < 1e-3
 
 
+@pytest.mark.slow  # compiling forward mode through the shooting takes minutes on 2 cores
 def test_bench_gradient_quick(tmp_path):
     _run("bench_gradient.py", tmp_path)
     data = json.loads((tmp_path / "gradient_quick.json").read_text())
