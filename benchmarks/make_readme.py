@@ -1,0 +1,184 @@
+"""Write ``benchmarks/README.md`` from the results JSON in ``benchmarks/results/``.
+
+Every ``*.json`` there is read; a result with a ``markdown`` entry contributes that table, one
+with only ``rows`` (a list of flat dicts) a table made from them, anything else a line naming
+the file. ``*_quick.json`` (smoke runs of the tests) are skipped unless ``--include-quick``.
+Known benchmarks come first in a fixed order, the rest alphabetically; each section states the
+machine, versions and date it was measured on, as its JSON records them.
+
+Run:  PYTHONPATH=. python benchmarks/make_readme.py [--results DIR] [--output FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+ORDER = ("simulate", "batch", "gradient")
+TITLES = {"simulate": "One default simulation (`bench_simulate.py`)",
+          "batch": "Parameter batches (`bench_batch.py`)",
+          "gradient": "Gradients of the deviation metric (`bench_gradient.py`)"}
+RERUN = """\
+## How to rerun
+
+From the repository root, with float64 on (the scripts set it) and nothing else heavy running:
+
+```sh
+PYTHONPATH=. python benchmarks/bench_simulate.py      # cold/warm simulate vs solve_ivp, work–precision
+PYTHONPATH=. python benchmarks/bench_batch.py         # 256 / 4096 / 65 536 samples, 1 and 2 devices
+PYTHONPATH=. python benchmarks/bench_gradient.py      # d deviation / d design vs finite differences
+PYTHONPATH=. python benchmarks/make_readme.py         # this file
+```
+
+Each script takes `--quick` (the smoke size the tests run; results go to `*_quick.json`,
+ignored here) and `--out DIR`. The scipy side solves the same equations
+(`benchmarks/scipy_model.py`: the dobby's right-hand side in numpy from jaxdobby's modal
+matrices, equal to `jaxdobby.dobby.vector_field` to ~1e-15; `benchmarks/scipy_steady.py`: the
+periodic steady state with `solve_ivp`); `tests/test_benchmarks.py` checks that equality and
+that the scipy steady state's metrics agree with `jaxdobby.simulate(method="adaptive")`.
+"""
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, (list, dict)):
+        return json.dumps(v)[:60]
+    return str(v)
+
+
+def rows_table(rows: list) -> str:
+    """A markdown table from a list of flat dicts (the union of their keys, in order)."""
+    rows = [r for r in rows if isinstance(r, dict)]
+    if not rows:
+        return ""
+    keys: list[str] = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    lines += ["| " + " | ".join(_fmt(r.get(k, "")) for k in keys) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def machine_line(env) -> str:
+    """One line: the machine, the versions and the date a result was measured with."""
+    if not isinstance(env, dict):
+        return ""
+    dev, ver = env.get("device", {}) or {}, env.get("versions", {}) or {}
+    parts = []
+    if dev:
+        parts.append(f"{dev.get('cpu', '?')}, {dev.get('cores_available', '?')} cores"
+                     + (f", {dev['memory_gib']:.0f} GiB" if dev.get("memory_gib") else ""))
+    if ver:
+        parts.append(", ".join(f"{k} {v}" for k, v in ver.items()))
+    if env.get("date"):
+        parts.append(env["date"])
+    if env.get("load_average_start") is not None:
+        parts.append("load average at start "
+                     + "/".join(f"{x:.1f}" for x in env["load_average_start"][:3]))
+    if env.get("git_commit"):
+        parts.append(f"commit {env['git_commit']}")
+    return "Measured on: " + "; ".join(parts) + "." if parts else ""
+
+
+def section(path: Path, data) -> str:
+    """The README section of one results file."""
+    name = data.get("benchmark", path.stem) if isinstance(data, dict) else path.stem
+    title = TITLES.get(name, f"`{path.name}`")
+    out = [f"## {title}", ""]
+    if not isinstance(data, dict):
+        return "\n".join(out + [f"(`{path.name}`: not a JSON object; skipped)", ""])
+    env = data.get("environment") or {k: data[k] for k in ("date", "device", "versions")
+                                       if k in data}
+    line = machine_line(env) if env else ""
+    if isinstance(data.get("markdown"), str):
+        out.append(data["markdown"].strip())
+    elif isinstance(data.get("rows"), list) and rows_table(data["rows"]):
+        out.append(rows_table(data["rows"]))
+    else:
+        out.append(f"(`{path.name}` has no `markdown` or `rows` entry; see the file.)")
+    if data.get("figure"):
+        out += ["", f"![{data['figure']}](results/{data['figure']})"]
+    if line:
+        out += ["", line]
+    out += ["", f"Source: `results/{path.name}`.", ""]
+    return "\n".join(out)
+
+
+def targets(by_name: dict) -> str:
+    """The issue's targets against the measured figures (only those whose results exist)."""
+    rows = []
+    sim, batch, grad = by_name.get("simulate"), by_name.get("batch"), by_name.get("gradient")
+    if sim:
+        cold = sim.get("cold", {})
+        key = "no_cache" if "no_cache" in cold else next(iter(cold), None)
+        if key:
+            rows.append(("`simulate()` cold, compilation included", "≤ 10 s",
+                         f"{cold[key]['total_s']:.1f} s ({key.replace('_', ' ')})"
+                         + (f"; {cold['cache_filled']['total_s']:.1f} s with the persistent "
+                            "cache filled" if "cache_filled" in cold else "")))
+        if sim.get("jaxdobby"):
+            rows.append(("`simulate()` warm", "≤ 100 ms",
+                         f"{1e3 * sim['jaxdobby'][0]['median_s']:.0f} ms"))
+    if batch and batch.get("rows"):
+        big = max(batch["rows"], key=lambda r: r["samples"])
+        rows.append((f"batch ({big['samples']} samples) vs scipy serial loop, numpy RHS",
+                     "≥ 1000×", f"{big['speedup_vs_serial_numpy']:.0f}×"))
+        rows.append((f"batch ({big['samples']} samples) vs scipy on 2 cores, jitted RHS",
+                     "≥ 20×", f"{big['speedup_vs_pool_jitted']:.0f}×"))
+    if grad and grad.get("rows"):
+        g8 = next((r for r in grad["rows"] if "8" in r["case"]), None)
+        if g8:
+            rows.append(("gradient w.r.t. 8 design variables", "≤ 5 forward solves",
+                         f"{g8['forward_solves']:.1f} forward solves"))
+    if not rows:
+        return ""
+    lines = ["## Targets of issue 6", "", "| target | asked | measured |", "|---|---|---|"]
+    lines += [f"| {a} | {b} | {c} |" for a, b, c in rows]
+    return "\n".join(lines) + "\n"
+
+
+def build(results: Path, include_quick: bool = False) -> str:
+    files = sorted(p for p in results.glob("*.json")
+                   if include_quick or not p.stem.endswith("_quick"))
+    loaded = []
+    for p in files:
+        try:
+            data = json.loads(p.read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            data = f"unreadable: {e}"
+        name = data.get("benchmark", p.stem) if isinstance(data, dict) else p.stem
+        rank = ORDER.index(name) if name in ORDER else len(ORDER)
+        loaded.append((rank, p.name, p, data))
+    loaded.sort(key=lambda x: (x[0], x[1]))
+    head = ["# Benchmarks: jaxdobby against scipy",
+            "",
+            ("Generated by `benchmarks/make_readme.py` from `benchmarks/results/*.json`; do not "
+            "edit by hand. Times are wall-clock seconds, float64 on both sides, medians of "
+            "repeats after compilation unless a row says *cold*. Errors are the largest relative "
+            "error of the compared metrics against a tight scipy reference (DOP853)."),
+            ""]
+    if not loaded:
+        head.append("No results yet: run the scripts below.\n")
+    by_name = {d.get("benchmark"): d for _, _, _, d in loaded if isinstance(d, dict)}
+    body = [section(p, data) for _, _, p, data in loaded]
+    return "\n".join(head + [targets(by_name)] + body + [RERUN])
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--results", type=Path, default=HERE / "results")
+    p.add_argument("--output", type=Path, default=HERE / "README.md")
+    p.add_argument("--include-quick", action="store_true")
+    ns = p.parse_args(argv)
+    ns.output.write_text(build(ns.results, ns.include_quick))
+    print(ns.output)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

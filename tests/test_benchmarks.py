@@ -1,0 +1,162 @@
+"""The benchmarks against scipy: the same equations on both sides, and every script's smoke run.
+
+1. The numpy right-hand side of ``benchmarks/scipy_model.py`` (what the scipy side integrates)
+   equals ``jaxdobby.dobby.vector_field`` at random states and times, for two machines.
+2. The periodic steady state found with ``solve_ivp`` (``benchmarks/scipy_steady.py``) has the
+   metrics of ``jaxdobby.simulate(method="adaptive")``.
+3. Each benchmark script runs with ``--quick`` in a subprocess and writes its JSON with the
+   expected keys and sane values (no timing assertions: the machine is shared), and the README
+   generator turns those files (and an unknown one) into markdown.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from benchmarks.scipy_model import METRICS, NumpyDobby, metric_error
+from benchmarks.scipy_steady import jitted_problem, steady_state
+from jaxdobby import Machine, OperatingPoint
+from jaxdobby.dobby import build_model, vector_field
+from jaxdobby.simulate import simulate
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.mark.parametrize("machine, operating", [
+    (Machine.default(), OperatingPoint()),
+    (Machine.default(n_modes=3, warp_law="opposing"),
+     OperatingPoint.from_users_units(speed_rpm=1100.0, warp_force_n=900.0)),
+])
+def test_numpy_rhs_equals_vector_field(machine, operating):
+    # The numpy code re-derives every time-dependent quantity (modulator, loop-closure rates,
+    # the chain's curvature term) by hand where jaxdobby uses autodiff; only round-off may
+    # differ. Measured <= 6e-13 relative per component (a small acceleration component near a
+    # cancellation), ~1e-15 on the largest, so 1e-10 of the largest component is a wide margin
+    # that a wrong sign or factor anywhere would break by orders of magnitude.
+    model = build_model(machine, operating)
+    numpy_model = NumpyDobby.from_model(model)
+    k = model.n_modes
+    field = jax.jit(lambda t, x: jnp.concatenate(vector_field(t, (x[:k], x[k:]), model)))
+    rng = np.random.default_rng(1)
+    scale = np.r_[np.full(k, 1e-4), np.full(k, 1e-1)]  # modal displacements and rates
+    for _ in range(12):
+        t = rng.uniform(0.0, 2.0 * numpy_model.period)  # both picks and the dwells
+        x = rng.normal(size=2 * k) * scale
+        expected = np.asarray(field(t, x))
+        got = numpy_model.rhs(t, x)
+        np.testing.assert_allclose(got, expected, rtol=0,
+                                   atol=1e-10 * np.max(np.abs(expected)))
+    # broadcasting over states (the form solve_ivp's vectorised Jacobian uses)
+    xs = rng.normal(size=(2 * k, 3)) * scale[:, None]
+    cols = np.stack([numpy_model.rhs(0.03, xs[:, j]) for j in range(3)], axis=1)
+    np.testing.assert_allclose(numpy_model.rhs_vectorized(0.03, xs), cols, rtol=1e-13, atol=0)
+
+
+def test_scipy_steady_state_matches_adaptive_jaxdobby():
+    # Both sides at tight tolerances (scipy DOP853 rtol 1e-10; jaxdobby Tsit5 rtol 1e-10), periodic
+    # to 1e-8, metrics over the same 3001 output times: they agree to 1e-5 relative (the
+    # tolerance the batch path is held to against the same reference). Newton shooting (cycling
+    # had not converged to 1e-8 after 60 cycles at one mode). One mode,
+    # so that the non-stiff problem is cheap for both. The numpy outputs (heald-frame series)
+    # are checked too: scipy's metrics are computed from them.
+    machine, operating = Machine.default(n_modes=1), OperatingPoint()
+    ref = simulate(machine, operating, method="adaptive", rtol=1e-10, atol=1e-14,
+                   tolerance=1e-8)
+    assert bool(ref.converged)
+    model = build_model(machine, operating)
+    numpy_model = NumpyDobby.from_model(model)
+    run = steady_state(jitted_problem(model, numpy_model), "DOP853", 1e-10, 1e-14,
+                       np.asarray(ref.series.t), tolerance=1e-8, strategy="newton")
+    assert run.converged
+    expected = {m: float(ref.metrics[m]) for m in METRICS}
+    assert metric_error(run.metrics, expected) < 1e-5, (run.metrics, expected)
+
+
+def _run(script, tmp_path, *args):
+    # a persistent compilation cache shared by the scripts' processes and reruns
+    env = dict(os.environ, PYTHONPATH=str(ROOT),
+               JAXDOBBY_BENCH_CACHE=str(ROOT / ".pytest_cache" / "xla"))
+    p = subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), "--quick", "--out",
+                        str(tmp_path), *args], cwd=ROOT, env=env, capture_output=True,
+                       text=True, timeout=900, check=False)
+    assert p.returncode == 0, p.stderr[-4000:]
+    return p
+
+
+def _common_keys(data):
+    env = data["environment"]
+    assert env["float64"] is True
+    assert {"jax", "scipy", "numpy"} <= set(env["versions"])
+    assert env["device"]["cores_available"] >= 1
+    assert isinstance(data["markdown"], str) and "|" in data["markdown"]
+    assert data["rows"]
+
+
+def test_bench_simulate_quick(tmp_path):
+    _run("bench_simulate.py", tmp_path)
+    data = json.loads((tmp_path / "simulate_quick.json").read_text())
+    _common_keys(data)
+    assert data["cold"]["quick"]["total_s"] > 0 and data["cold"]["quick"]["converged"]
+    (jax_default,) = data["jaxdobby"]
+    assert jax_default["converged"] and jax_default["median_s"] > 0
+    # the RK4 fast path is accurate (documented ~1e-5 against the adaptive reference)
+    assert jax_default["error"] < 1e-3
+    assert {r["method"] for r in data["scipy"]} == {"RK45", "Radau"}
+    assert {r["rhs"] for r in data["scipy"]} == {"numpy", "jitted"}
+    for r in data["scipy"]:
+        assert r["converged"] and r["median_s"] > 0 and 0 <= r["error"] < 1e-2
+    assert (tmp_path / data["figure"]).stat().st_size > 1000
+
+
+@pytest.mark.slow  # ~5 min on 2 busy cores with an empty cache: 3 processes compile the batch
+# path and 4 pool workers the model build; the scipy side needs ~10 s per sample even at 1 mode
+def test_bench_batch_quick(tmp_path):
+    pytest.importorskip("jaxdobby.batch")
+    _run("bench_batch.py", tmp_path)
+    data = json.loads((tmp_path / "batch_quick.json").read_text())
+    _common_keys(data)
+    assert data["sane"]
+    assert set(data["jaxdobby"]) == {"1", "2"}
+    assert data["two_cores"] == "processes" and data["jaxdobby"]["2"]["processes"] == 2
+    for k in ("1", "2"):
+        for size in data["jaxdobby"][k]["sizes"]:
+            assert size["ok_fraction"] == 1.0 and size["samples_per_s"] > 0
+    assert data["scipy_pool_numpy"]["workers_seen"] == 2
+    for r in data["rows"]:
+        assert r["speedup_vs_serial_numpy"] > 0
+    assert data["accuracy"]["jaxdobby_batch_max_error"] < 1e-3
+
+
+@pytest.mark.slow  # compiling forward mode through the shooting takes minutes on 2 cores
+def test_bench_gradient_quick(tmp_path):
+    _run("bench_gradient.py", tmp_path)
+    data = json.loads((tmp_path / "gradient_quick.json").read_text())
+    _common_keys(data)
+    assert len(data["jaxdobby"]["gradient_8"]["value"]) == 8
+    # autodiff and central differences of the same metric agree (loose: quick tolerances)
+    assert data["derivative_thickness"]["relative_difference"] < 1e-2
+
+
+def test_make_readme_reads_results_generically(tmp_path):
+    from benchmarks.make_readme import build
+
+    (tmp_path / "gradient_cost.json").write_text(json.dumps(
+        {"date": "2026-01-01", "rows": [{"case": "thickness", "ratio": 2.5}]}))
+    (tmp_path / "sobol_throughput.json").write_text(json.dumps(
+        {"markdown": "| a | b |\n|---|---|\n| 1 | 2 |"}))
+    (tmp_path / "odd.json").write_text("[1, 2]")
+    (tmp_path / "broken.json").write_text("{")
+    (tmp_path / "simulate_quick.json").write_text(json.dumps({"markdown": "QUICK"}))
+    text = build(tmp_path)
+    assert "| case | ratio |" in text and "| thickness | 2.5 |" in text
+    assert "| a | b |" in text
+    assert "odd.json" in text and "broken.json" in text
+    assert "QUICK" not in text
+    assert "How to rerun" in text
