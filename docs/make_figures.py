@@ -105,8 +105,8 @@ def sobol(indices: dict) -> plt.Figure:
         axes[1, col].set_title("share of total sensitivity ST / ΣST", fontsize=9)
     axes[0, 0].set_ylabel("Sobol index [-]")
     n = indices["analysis"]["n_used"]
-    fig.suptitle("Sobol indices over speed 400–1200 r/min, warp force 345–1035 N, stroke "
-                 f"80–140 mm, thickness 6–8 mm (N = {n}, 95 % intervals)", fontsize=10)
+    fig.suptitle(f"Sobol indices (N = {n}, 95 % intervals) over speed 400–1200 r/min,\n"
+                 "warp force 345–1035 N, stroke 80–140 mm, thickness 6–8 mm", fontsize=10)
     return fig
 
 
