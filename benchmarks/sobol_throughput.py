@@ -4,11 +4,15 @@ Measures, on this machine, float64, compile time apart:
 
 * samples per second of :data:`jaxdobby.sensitivity.DOBBY` (steady-state metrics of the coupled
   model, :func:`jaxdobby.batch.steady_state_metrics`) over rows of the default problem's Sobol
-  design, in chunks of ``--chunk`` rows, on 1 and on 2 host devices (each device count in a
-  fresh process, ``XLA_FLAGS=--xla_force_host_platform_device_count=K``; the chunk is split
-  over the devices with ``shard_map``), median of ``--repeats`` timed passes over the rows;
+  design, in chunks of ``--chunk`` rows, in 1 and in 2 concurrent processes of one CPU device
+  each (each its share of the rows, timing started together after all have compiled), median
+  of ``--repeats`` timed passes;
 * the wall time of the whole default study, ``jaxdobby sobol --n 1024 --second-order``
-  (10 240 runs, analysis and figures included), on the fastest device count;
+  (10 240 runs, analysis and figures included), in 2 processes joined by ``jax.distributed``.
+
+Why processes and not ``--xla_force_host_platform_device_count=2``: on this 2-core machine the
+dobby's program sharded over two host devices stalls in XLA's CPU runtime (no progress, 0 % CPU;
+the Ishigami test model shards fine), while two processes of one device each scale.
 * with ``--accuracy``: the largest relative error of each metric at the 16 corners of the
   default box against the adaptive reference (``jaxdobby.simulate(method="adaptive")``,
   rtol 1e-8), the accuracy the throughput is measured at.
@@ -48,10 +52,15 @@ def worker(args) -> dict:
 
     space = ParameterSpace.from_names(DOBBY.default_names, DOBBY.parameters)
     rows = space.sample(args.n, second_order=True, seed=0)[: args.rows]
+    rows = rows[args.share::args.of]  # this process's share of the rows
     model = DOBBY.build(space)
     t0 = time.perf_counter()
     evaluate(model, rows[: args.chunk], chunk_size=args.chunk)  # trace + compile + one chunk
     first = time.perf_counter() - t0
+    if args.barrier:  # start timing together with the other processes
+        Path(f"{args.barrier}.ready{args.share}").touch()
+        while not Path(f"{args.barrier}.go").exists():
+            time.sleep(0.05)
     times = []
     for _ in range(args.repeats):
         t0 = time.perf_counter()
@@ -59,35 +68,82 @@ def worker(args) -> dict:
         times.append(time.perf_counter() - t0)
     run = statistics.median(times)
     chunk_time = run * args.chunk / len(rows)
-    out = {"devices": len(jax.devices()), "rows": int(len(rows)), "chunk": args.chunk,
+    out = {"devices": len(jax.devices()), "processes": args.of, "rows": len(rows),
+           "chunk": args.chunk,
            "seconds": run, "samples_per_s": len(rows) / run,
            "compile_s": max(first - chunk_time, 0.0),
            "failed": int(np.sum(~ev.outputs["ok"])),
            "mean_deviation_pp_mm": float(np.mean(ev.outputs["deviation_pp_mm"]))}
-    if args.study:
-        from jaxdobby.sensitivity import SobolConfig, run_sobol
-
-        with tempfile.TemporaryDirectory() as d:
-            t0 = time.perf_counter()
-            run = run_sobol(SobolConfig(n=1024, second_order=True, out=d, chunk_size=args.chunk))
-            out["study_wall_s"] = time.perf_counter() - t0
-            out["study_rows"] = int(run.evaluation.outputs["ok"].size)
-            st = run.result.metrics["deviation_pp_mm"].ST
-            out["study_ST_deviation_pp"] = dict(zip(run.space.names, map(float, st)))
     return out
 
 
-def in_subprocess(devices: int, args) -> dict:
-    env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={devices}",
-               PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+def _env(devices: int = 1) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               JAXDOBBY_CACHE_DIR="off")
+    env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}"
+    return env
+
+
+def _worker_cmd(args, share: int, of: int, barrier: str | None) -> list[str]:
     cmd = [sys.executable, __file__, "--worker", "--n", str(args.n), "--rows", str(args.rows),
-           "--chunk", str(args.chunk), "--repeats", str(args.repeats)]
-    if args.study and devices == max(args.devices):
-        cmd.append("--study")
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
-    if proc.returncode != 0:
-        raise RuntimeError(f"worker with {devices} devices failed:\n{proc.stderr[-3000:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+           "--chunk", str(args.chunk), "--repeats", str(args.repeats), "--share", str(share),
+           "--of", str(of), "--no-study"]
+    return cmd + (["--barrier", barrier] if barrier else [])
+
+
+def in_processes(processes: int, args) -> dict:
+    """Rows timed in ``processes`` concurrent processes of one CPU device each (their shares),
+    timing started together after every process has compiled; samples/s = rows / slowest."""
+    with tempfile.TemporaryDirectory() as d:
+        barrier = str(Path(d) / "sync") if processes > 1 else None
+        procs = [subprocess.Popen(_worker_cmd(args, i, processes, barrier), env=_env(),
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                 for i in range(processes)]
+        if barrier:
+            while not all(Path(f"{barrier}.ready{i}").exists() for i in range(processes)):
+                if any(p.poll() not in (None, 0) for p in procs):
+                    break
+                time.sleep(0.1)
+            Path(f"{barrier}.go").touch()
+        outs = [p.communicate() for p in procs]
+    for p, (_, err) in zip(procs, outs):
+        if p.returncode != 0:
+            raise RuntimeError(f"worker failed:\n{err[-3000:]}")
+    runs = [json.loads(o.strip().splitlines()[-1]) for o, _ in outs]
+    rows = sum(r["rows"] for r in runs)
+    seconds = max(r["seconds"] for r in runs)
+    return {"devices": 1, "processes": processes, "rows": rows, "chunk": args.chunk,
+            "seconds": seconds, "samples_per_s": rows / seconds,
+            "compile_s": max(r["compile_s"] for r in runs),
+            "failed": sum(r["failed"] for r in runs)}
+
+
+def default_study(processes: int, chunk: int) -> dict:
+    """Wall time of `jaxdobby sobol --n 1024 --second-order` in ``processes`` processes joined
+    by jax.distributed on localhost (compilation, analysis and figures included)."""
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("localhost", 0))
+        port = sock.getsockname()[1]
+    with tempfile.TemporaryDirectory() as d:
+        cmd = [sys.executable, "-m", "jaxdobby.cli", "sobol", "--n", "1024", "--second-order",
+               "--out", str(Path(d) / "run"), "--chunk-size", str(chunk), "--json"]
+        if processes > 1:
+            cmd += ["--coordinator", f"localhost:{port}", "--num-processes", str(processes)]
+        t0 = time.perf_counter()
+        procs = [subprocess.Popen(cmd + (["--process-id", str(i)] if processes > 1 else []),
+                                  env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  text=True) for i in range(processes)]
+        outs = [p.communicate() for p in procs]
+        wall = time.perf_counter() - t0
+    for p, (_, err) in zip(procs, outs):
+        if p.returncode != 0:
+            raise RuntimeError(f"sobol failed:\n{err[-3000:]}")
+    indices = json.loads(outs[0][0])
+    st = indices["metrics"]["deviation_pp_mm"]["ST"]
+    return {"processes": processes, "rows": 10240, "study_wall_s": wall,
+            "study_ST_deviation_pp": st}
 
 
 def accuracy() -> dict:
@@ -122,17 +178,16 @@ def accuracy() -> dict:
 
 
 def markdown(result: dict) -> str:
-    lines = ["| devices | rows | chunk | samples/s | compile [s] | failed |",
+    lines = ["| processes × devices | rows | chunk | samples/s | compile [s] | failed |",
              "|---|---|---|---|---|---|"]
     for r in result["runs"]:
-        lines.append(f"| {r['devices']} | {r['rows']} | {r['chunk']} | "
+        lines.append(f"| {r['processes']} × {r['devices']} | {r['rows']} | {r['chunk']} | "
                      f"{r['samples_per_s']:.0f} | {r['compile_s']:.1f} | {r['failed']} |")
-    for r in result["runs"]:
-        if "study_wall_s" in r:
-            lines.append("")
-            lines.append(f"Default study (`jaxdobby sobol --n 1024 --second-order`, "
-                         f"{r['study_rows']} runs) on {r['devices']} device(s): "
-                         f"**{r['study_wall_s']:.1f} s** wall, compilation and analysis included.")
+    for r in result.get("studies", []):
+        lines.append("")
+        lines.append(f"Default study (`jaxdobby sobol --n 1024 --second-order`, {r['rows']} runs) "
+                     f"in {r['processes']} process(es): **{r['study_wall_s']:.0f} s** wall, "
+                     f"compilation and analysis included.")
     if "accuracy" in result:
         errs = ", ".join(f"{k} {v:.1e}" for k, v in result["accuracy"]["max_relative_error"].items())
         lines.append("")
@@ -146,7 +201,8 @@ def markdown(result: dict) -> str:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="smoke size (a few seconds of running)")
-    ap.add_argument("--devices", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--processes", type=int, nargs="+", default=[1, 2],
+                    help="process counts to time (one CPU device each)")
     ap.add_argument("--n", type=int, default=1024, help="base samples of the design")
     ap.add_argument("--rows", type=int, default=2048, help="rows timed per pass")
     ap.add_argument("--chunk", type=int, default=256, help="rows per chunk")
@@ -157,6 +213,9 @@ def main(argv=None):
                     help="also the corners against the adaptive reference (minutes)")
     ap.add_argument("--out", default=str(RESULTS))
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--share", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--of", type=int, default=1, help=argparse.SUPPRESS)
+    ap.add_argument("--barrier", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
         print(json.dumps(worker(args)))
@@ -170,7 +229,9 @@ def main(argv=None):
               "machine": f"{platform.processor() or platform.machine()}, "
                          f"{os.cpu_count()} cores, {platform.system()}",
               "python": platform.python_version(), "jax": jax.__version__,
-              "runs": [in_subprocess(d, args) for d in args.devices]}
+              "runs": [in_processes(p, args) for p in args.processes]}
+    if args.study:
+        result["studies"] = [default_study(max(args.processes), args.chunk)]
     if args.accuracy:
         result["accuracy"] = accuracy()
     result["markdown"] = markdown(result)

@@ -86,7 +86,7 @@ def _check_reachable(linkage: DobbyLinkage, target: Array) -> None:
         )
 
 
-def arc_length_for_stroke(linkage: DobbyLinkage, target_stroke) -> Array:
+def arc_length_for_stroke(linkage: DobbyLinkage, target_stroke, *, check: bool = True) -> Array:
     """Arc length s [m] of the link-11 joint that gives the heald-frame stroke ``target_stroke``.
 
     ``target_stroke`` [m], elementwise (any shape). Newton iterations in ``lax.fori_loop`` from the
@@ -96,15 +96,20 @@ def arc_length_for_stroke(linkage: DobbyLinkage, target_stroke) -> Array:
     Raises:
         ValueError: for a concrete target outside :func:`stroke_range` (the message gives the
             range in mm). Under ``jit``/``vmap`` with traced values the same check runs through
-            ``eqx.error_if`` and fails at run time.
+            ``eqx.error_if`` and fails at run time. ``check=False`` leaves both checks out (the
+            caller clips or flags unreachable targets itself): ``eqx.error_if`` is a host
+            callback, and host callbacks inside a program sharded over several CPU devices
+            can stall it.
     """
     target = jnp.asarray(target_stroke, dtype=float)
+    if not check:
+        return _solve(linkage, target, False)
     _check_reachable(linkage, target)
-    return _solve(linkage, target)
+    return _solve(linkage, target, True)
 
 
 @eqx.filter_jit
-def _solve(linkage: DobbyLinkage, target: Array) -> Array:
+def _solve(linkage: DobbyLinkage, target: Array, check: bool) -> Array:
     """Newton on H(s) = target inside ``custom_root``; flags unreachable targets at run time."""
     s_lo, s_hi = linkage.slot_start, linkage.slot_end
     h_at_lo, h_at_hi = stroke(linkage, s_lo), stroke(linkage, s_hi)
@@ -124,6 +129,8 @@ def _solve(linkage: DobbyLinkage, target: Array) -> Array:
         return y / g(jnp.ones_like(y))  # g is diagonal: the residual is elementwise in s
 
     s = jax.lax.custom_root(residual, guess, newton, tangent_solve)
+    if not check:
+        return s
     h_lo, h_hi = jnp.minimum(h_at_lo, h_at_hi), jnp.maximum(h_at_lo, h_at_hi)
     unreachable = (target < h_lo - _RANGE_TOL) | (target > h_hi + _RANGE_TOL)
     return eqx.error_if(

@@ -26,6 +26,7 @@ row of ``samples``:
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Sequence
 
@@ -91,6 +92,9 @@ def check_chunk_size(chunk_size: int, n_devices: int) -> None:
 def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence[jax.Device]):
     """The compiled per-chunk function: (C, D) float64 samples → dict of (C,) outputs.
 
+    Compiled once per (model, C, D, devices) and kept (the last few), so calling
+    :func:`evaluate` again with the same model function does not compile again.
+
     Args:
         model: one row (D,) → dict of scalar outputs.
         chunk_size: rows per chunk C, a multiple of ``len(devices)``.
@@ -101,6 +105,11 @@ def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence
         ``(compiled, sharding)``: the AOT-compiled function and the input sharding it expects.
     """
     check_chunk_size(chunk_size, len(devices))
+    return _compile(model, chunk_size, dim, tuple(devices))
+
+
+@functools.lru_cache(maxsize=8)
+def _compile(model: Callable, chunk_size: int, dim: int, devices: tuple[jax.Device, ...]):
     mesh = jax.make_mesh((len(devices),), ("samples",), axis_types=(jax.sharding.AxisType.Auto,),
                          devices=devices)
     spec = PartitionSpec("samples")

@@ -19,11 +19,12 @@ converge, the chain left its workspace, or a metric is not finite: a *failed sam
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax.numpy as jnp
 
 from ..batch import DEFAULT_STEPS, steady_state_metrics
 from ..parameters import PARAMETERS, Setup, apply
-from ..stroke import stroke_range
+from ..stroke import arc_length_for_stroke, stroke_range
 from .models import ModelSpec
 from .space import ParameterSpace, ParameterSpec
 
@@ -67,19 +68,23 @@ def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
 
         def model(x):
             values = {n: x[i] * scales[i] for i, n in enumerate(names)}
-            reachable = jnp.array(True)
-            if "stroke" in values:
+            target = values.pop("stroke", None)
+            setup = apply(start, values)
+            ok = jnp.array(True)
+            if target is not None:
                 # A stroke the slot cannot give (possible when the linkage is sampled too) is a
                 # failed sample, not a run-time error that would stop the whole batch: solve
-                # for the nearest reachable stroke and flag the sample.
-                other = apply(start, {n: v for n, v in values.items() if n != "stroke"})
-                lo, hi = stroke_range(other.machine.chain)
-                target = values["stroke"]
-                reachable = (target >= lo) & (target <= hi)
-                values["stroke"] = jnp.clip(target, lo, hi)
-            out = steady_state_metrics(apply(start, values), steps=steps, tolerance=tolerance)
+                # for the nearest reachable stroke and flag the sample. (No eqx.error_if in
+                # the batch: host callbacks can stall programs sharded over CPU devices.)
+                chain = setup.machine.chain
+                lo, hi = stroke_range(chain)
+                ok = (target >= lo) & (target <= hi)
+                s = arc_length_for_stroke(chain, jnp.clip(target, lo, hi), check=False)
+                setup = eqx.tree_at(lambda u: u.machine, setup,
+                                    setup.machine.with_link11_arc_length(s))
+            out = steady_state_metrics(setup, steps=steps, tolerance=tolerance)
             metrics = {name: out[key] * factor for key, (name, factor) in METRIC_UNITS.items()}
-            metrics["ok"] = out["ok"] & reachable
+            metrics["ok"] = out["ok"] & ok
             return metrics
 
         return model
