@@ -53,16 +53,23 @@ def build(source: Path, execute: bool = True, quick: bool = False, timeout: int 
                                  "language": "python"}
     target = HERE / f"{source.stem}.ipynb"
     if execute:
-        env_before = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK")
-        os.environ["JAXDOBBY_NOTEBOOK_QUICK"] = "1" if quick else "0"
+        # The kernel inherits the environment: the size flag, and this checkout's package first
+        # on the path (a relative PYTHONPATH would resolve against notebooks/, the kernel's
+        # directory, and an installed jaxdobby could be another checkout's).
+        path = os.pathsep.join([str(HERE.parent)] + [p for p in os.environ.get(
+            "PYTHONPATH", "").split(os.pathsep) if p and p != "."])
+        env = {"JAXDOBBY_NOTEBOOK_QUICK": "1" if quick else "0", "PYTHONPATH": path}
+        before = {k: os.environ.get(k) for k in env}
+        os.environ.update(env)
         try:
             NotebookClient(nb, timeout=timeout, kernel_name="python3",
                            resources={"metadata": {"path": str(HERE)}}).execute()
         finally:
-            if env_before is None:
-                os.environ.pop("JAXDOBBY_NOTEBOOK_QUICK", None)
-            else:
-                os.environ["JAXDOBBY_NOTEBOOK_QUICK"] = env_before
+            for k, v in before.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
     return target, nb
 
 

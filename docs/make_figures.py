@@ -1,0 +1,136 @@
+"""Make the README's figures (``docs/figures/*.png``) from the package.
+
+    python docs/make_figures.py                 # all
+    python docs/make_figures.py cycle sweep     # some
+    python docs/make_figures.py sobol --sobol-dir notebooks/runs/sobol-restoring-1024
+
+``cycle``: the default machine's heald frame over one cycle, rigid and flexible, and the
+deviation; ``sweep``: the speed study (deviation and acceleration against speed); ``sobol``:
+total Sobol indices of the deviation and the acceleration as bars and pie charts, read from the
+``indices.json`` of a finished ``jaxdobby sobol`` run (notebook 05 keeps its N = 1024 run in
+``notebooks/runs/``), or from a fresh run at ``--n`` base samples when none is given.
+Figures are kept small (100 dpi) because they are committed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import jax
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+OUT = HERE / "figures"
+DPI = 100
+METRICS = {"deviation_pp_mm": "heald-frame displacement deviation (p-p)",
+           "acceleration_amp_m_s2": "heald-frame acceleration (p-p)"}
+
+
+def cycle() -> plt.Figure:
+    from jaxdobby import Machine, OperatingPoint, simulate
+
+    run = simulate(Machine.default(), OperatingPoint.from_users_units(speed_rpm=800.0,
+                                                                      warp_force_n=690.0))
+    s = run.series
+    t = np.asarray(s.t) * 1e3
+    rigid, flexible = np.asarray(s.heald_rigid) * 1e3, np.asarray(s.heald_flexible) * 1e3
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 5.0), sharex=True, layout="constrained",
+                                 height_ratios=(3, 2))
+    a1.plot(t, rigid, "k--", lw=1.0, label="rigid arm")
+    a1.plot(t, flexible, color="C0", lw=1.0, label="flexible arm")
+    a1.set_ylabel("heald-frame height [mm]")
+    a1.set_title("Default machine, 800 r/min, 690 N, 140 mm stroke, 6 mm arm: one cycle "
+                 "(two picks)", fontsize=10)
+    a1.legend(frameon=False)
+    a2.plot(t, flexible - rigid, color="C3", lw=1.0)
+    a2.axhline(0.0, color="k", lw=0.6)
+    a2.set_ylabel("deviation [mm]\n(flexible − rigid)")
+    a2.set_xlabel("time in the cycle [ms]  (0: middle of the bottom dwell)")
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+        a.set_xlim(t[0], t[-1])
+    return fig
+
+
+def sweep() -> plt.Figure:
+    from jaxdobby.parameters import Setup
+    from jaxdobby.sweep import run_sweep, trend_figure
+
+    result = run_sweep(Setup(), "speed", [400.0, 500.0, 600.0, 700.0, 800.0, 900.0, 1000.0,
+                                          1100.0, 1200.0])
+    return trend_figure(result)  # 690 N, 140 mm, 6 mm: the caption in the README says so
+
+
+def sobol_indices(directory: str | None, n: int) -> dict:
+    """The ``indices.json`` of a finished run, or of a fresh one at ``n`` base samples."""
+    if directory is None:
+        from jaxdobby import sensitivity as sa
+
+        directory = Path(tempfile.mkdtemp(prefix="jaxdobby-figures-")) / "sobol"
+        sa.run_sobol(sa.SobolConfig(n=n, out=directory, figures=False))
+    return json.loads((Path(directory) / "indices.json").read_text())
+
+
+def sobol(indices: dict) -> plt.Figure:
+    names = None
+    fig, axes = plt.subplots(2, 2, figsize=(9.0, 7.2), layout="constrained",
+                             height_ratios=(4, 5))
+    for col, (metric, label) in enumerate(METRICS.items()):
+        ix = indices["metrics"][metric]
+        names = names or list(ix["ST"])
+        st = np.array([ix["ST"][p] for p in names])
+        st_conf = np.array([ix["ST_conf"][p] for p in names])
+        s1 = np.array([ix["S1"][p] for p in names])
+        s1_conf = np.array([ix["S1_conf"][p] for p in names])
+        x = np.arange(len(names))
+        ax = axes[0, col]
+        ax.bar(x - 0.18, s1, 0.36, yerr=s1_conf, capsize=3, label="first order S1")
+        ax.bar(x + 0.18, st, 0.36, yerr=st_conf, capsize=3, label="total ST")
+        ax.set_xticks(x, [p.replace("_", "\n") for p in names])
+        ax.axhline(0.0, color="0.3", lw=0.8)
+        ax.set_ylim(min(0.0, float((s1 - s1_conf).min())) - 0.02, 1.0)
+        ax.set_title(label, fontsize=10)
+        ax.legend(frameon=False, fontsize=8)
+        share = np.clip(st, 0.0, None)
+        axes[1, col].pie(share / share.sum(), labels=names, autopct="%1.0f%%", startangle=90,
+                         counterclock=False)
+        axes[1, col].set_title("share of total sensitivity ST / ΣST", fontsize=9)
+    axes[0, 0].set_ylabel("Sobol index [-]")
+    n = indices["analysis"]["n_used"]
+    fig.suptitle(f"Sobol indices (N = {n}, 95 % intervals) over speed 400–1200 r/min,\n"
+                 "warp force 345–1035 N, stroke 80–140 mm, thickness 6–8 mm", fontsize=10)
+    return fig
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("which", nargs="*", default=["cycle", "sweep", "sobol"],
+                        choices=["cycle", "sweep", "sobol"], help="figures (default: all)")
+    parser.add_argument("--sobol-dir", default=None,
+                        help="a finished `jaxdobby sobol` run to plot (its indices.json)")
+    parser.add_argument("--n", type=int, default=256,
+                        help="base samples of a fresh Sobol run (without --sobol-dir)")
+    ns = parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
+    OUT.mkdir(parents=True, exist_ok=True)
+    makers = {"cycle": cycle, "sweep": sweep,
+              "sobol": lambda: sobol(sobol_indices(ns.sobol_dir, ns.n))}
+    for name in ns.which:
+        fig = makers[name]()
+        path = OUT / f"{name}.png"
+        fig.savefig(path, dpi=DPI)
+        plt.close(fig)
+        print(f"wrote {path.relative_to(HERE.parent)}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
