@@ -69,6 +69,8 @@ def main():
     ap.add_argument("--out", default="benchmarks/results")
     ap.add_argument("--mass-budget", type=float, default=0.48, help="kg, thickness+mass")
     ap.add_argument("--only", nargs="*", help="problem names to run (default: all)")
+    ap.add_argument("--iterations", type=int, help="cap on the optimiser's iterations "
+                    "(default: 15, 30, 30 by problem)")
     ap.add_argument("--resume", action="store_true", help="keep the rows already written")
     ap.add_argument("--rows-from", metavar="LOG", help="with --resume: take the rows from the "
                     "JSON lines a previous run printed")
@@ -87,6 +89,8 @@ def main():
     for name, (variables, limits, iterations) in problems(ns.mass_budget).items():
         if ns.only and name not in ns.only:
             continue
+        if ns.iterations:
+            iterations = min(iterations, ns.iterations)
         space = DesignSpace.create(Setup(), variables)
         # One RK4 step count per problem (valid over the box at the lowest speed, so at both):
         # the gradient compiles once for both speeds.
