@@ -89,7 +89,7 @@ def prepare_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4"):
             runs.append(dataclasses.replace(setup, machine=setup.machine.replace(n_modes=k)))
 
         def run_modes():
-            sims = [_simulate(s.machine, s.operating, method=method,
+            sims = [_simulate(s.machine, s.operating, None, method=method,
                               steps=default_steps(s.machine, s.operating) if method == "rk4"
                               else None, n_out=3001, rtol=1e-8, atol=1e-12, tolerance=1e-6,
                               forward_mode=False) for s in runs]
@@ -109,7 +109,7 @@ def prepare_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4"):
 
     def one(value):
         s = apply(setup, {parameter: value})
-        return _simulate(s.machine, s.operating, method=method, steps=steps, n_out=3001,
+        return _simulate(s.machine, s.operating, None, method=method, steps=steps, n_out=3001,
                          rtol=1e-8, atol=1e-12, tolerance=1e-6, forward_mode=False)
 
     def run_batch():

@@ -8,6 +8,8 @@ import csv
 import json
 import os
 import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -145,13 +147,16 @@ def test_unreadable_config(capsys, tmp_path):
 
 
 def test_console_script():
-    # The installed entry point, as a user runs it: a quick command, and a bad input.
+    # The installed entry point, as a user runs it: a quick command, and a bad input. The
+    # script of this interpreter's installation (another `jaxdobby` may come first on PATH).
     env = dict(os.environ, JAX_PLATFORMS="cpu")
-    proc = subprocess.run(["jaxdobby", "beam", "--modes", "3"], capture_output=True, text=True,
+    here = Path(sys.executable).parent / "jaxdobby"
+    script = str(here) if here.exists() else "jaxdobby"
+    proc = subprocess.run([script, "beam", "--modes", "3"], capture_output=True, text=True,
                           env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert "in the mechanism [Hz]" in proc.stdout
-    bad = subprocess.run(["jaxdobby", "simulate", "--speed", "-1"], capture_output=True,
+    bad = subprocess.run([script, "simulate", "--speed", "-1"], capture_output=True,
                          text=True, env=env, timeout=600)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert bad.stderr.strip().splitlines() == [
