@@ -138,3 +138,24 @@ def test_corners_of_the_default_box_match_the_adaptive_reference():
         for name in METRICS:
             assert float(batched[name][i]) == pytest.approx(float(ref[name]), rel=1e-4), (row,
                                                                                           name)
+
+
+def test_batched_program_calls_lapack_one_matrix_at_a_time():
+    """jaxlib splits a *batched* LAPACK call over the CPU's intra-op threads and blocks one of
+    them until the pieces finish; two such calls side by side deadlock a 2-core CPU (seen: a
+    chunk of 256 samples waiting for ever at 0 % CPU, native stacks in dgetrf and dtrsm both in
+    ParallelBatchMap). The batch path builds each sample's model sequentially, so in the program
+    vmapped over 256 samples (thickness varies, so the arm is rebuilt per sample) every LAPACK
+    call has operands of one matrix: rank 2, no batch axis."""
+    import re
+
+    def one(row):
+        return steady_state_metrics(setup_at(row), steps=8, max_passes=1)
+
+    rows = jnp.tile(jnp.array([800 * RPM, 690.0, 0.14007, 0.006]), (256, 1))
+    text = jax.jit(jax.vmap(one)).lower(rows).as_text()
+    calls = re.findall(r"custom_call @(lapack_\w+)\(.*?\) .*?: \(([^)]*)\)", text)
+    assert {name for name, _ in calls} >= {"lapack_dsyevd_ffi", "lapack_dgetrf_ffi"}
+    for name, operands in calls:
+        for shape in re.findall(r"tensor<([0-9x]+)xf64>", operands):
+            assert shape.count("x") == 1, (name, shape)

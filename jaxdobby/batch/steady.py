@@ -28,10 +28,11 @@ box (400–1200 r/min, 345–1035 N, 80–140 mm, 6–8 mm).
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg as jsl
 from jax import Array
+from jax.custom_batching import sequential_vmap
 
 from .._x64 import require_x64
 from ..dobby import DobbyModel, build_model
@@ -39,7 +40,8 @@ from ..parameters import Setup
 from ..steady_state import relative_residual
 from . import collocation as gl
 from .chain import downstream
-from .cycle import arm_terms, node_phases, rigid_arm, tables_at
+from .chain import Downstream
+from .cycle import ArmTerms, StageTables, arm_terms, node_phases, rigid_arm, tables_at
 from .stepper import _residuals, cycle_pass
 
 DEFAULT_STEPS = 576
@@ -68,6 +70,41 @@ def static_state(model: DobbyModel) -> Array:
     return jnp.concatenate([q, jnp.zeros(k)])
 
 
+class Cycle(eqx.Module):
+    """What the passes of one sample need, built once per sample by :func:`prepare`.
+
+    Attributes:
+        arm: Kane's modal terms of the arm. downstream: the chain's constants.
+        tables: the rigid motion's terms at the collocation nodes, leading axes (steps, 3).
+        rest: the start state x = (q, 0) of the first cycle (static equilibrium at t = 0).
+        period: cycle time T [s].
+    """
+
+    arm: ArmTerms
+    downstream: Downstream
+    tables: StageTables
+    rest: Array
+    period: Array
+
+
+def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
+    """Build the coupled model of ``setup`` (finite elements, modal reduction, static
+    equilibrium) and tabulate its rigid motion on ``steps`` steps per cycle.
+
+    :func:`steady_state_metrics` runs this once per sample, *sequentially* over a batch
+    (``jax.custom_batching.sequential_vmap``): it is where the LAPACK calls are (Cholesky,
+    ``eigh``, LU of the 31-DOF arm), and jaxlib spreads a batched LAPACK call over the CPU's
+    intra-op threads and blocks one of them until the pieces finish, so two such calls running
+    side by side on a 2-core CPU wait on each other for ever (seen with chunks of 256 samples).
+    One matrix at a time never splits. It is a small part of a sample's cost; the cycle passes,
+    which are all of the rest, stay vectorised over the batch.
+    """
+    model = build_model(setup.machine, setup.operating)
+    arm, ds = arm_terms(model), downstream(model)
+    tables = tables_at(arm, ds, rigid_arm(model, node_phases(steps)), model.period)
+    return Cycle(arm, ds, tables, static_state(model), jnp.asarray(model.period))
+
+
 def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance: float = 1e-7,
                          max_passes: int = 6) -> dict[str, Array]:
     """Metrics of the periodic steady cycle of ``setup`` (see the module docstring).
@@ -87,23 +124,22 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
     if setup.machine.coupling != "two-way":
         raise ValueError("the batch evaluator solves the two-way coupled model; got coupling="
                          f"{setup.machine.coupling!r} (use jaxdobby.simulate for one-way)")
-    model = build_model(setup.machine, setup.operating)
-    arm, ds = arm_terms(model), downstream(model)
-    period = model.period
-    tables = tables_at(arm, ds, rigid_arm(model, node_phases(steps)), period)
-    k = model.n_modes
+    dynamic, static = eqx.partition(setup, eqx.is_array)
+    cycle = sequential_vmap(lambda d: prepare(eqx.combine(d, static), steps))(dynamic)
+    arm, ds, tables, period = cycle.arm, cycle.downstream, cycle.tables, cycle.period
+    k = arm.mass.shape[0]
     eye = jnp.eye(2 * k)
 
-    x0 = static_state(model)
+    x0 = cycle.rest
     first = cycle_pass(arm, ds, tables, period, x0, tangents=eye, full_jacobian=True)
-    lu = jsl.lu_factor(eye - first.tangents)
-    x1 = x0 + jsl.lu_solve(lu, first.end - x0)
+    chord_matrix = sequential_vmap(jnp.linalg.inv)(eye - first.tangents)
+    x1 = x0 + chord_matrix @ (first.end - x0)
 
     def chord(carry):
         i, x, _, _ = carry
         run = cycle_pass(arm, ds, tables, period, x, outputs=True)
         r = relative_residual(x, run.end)
-        return i + 1, x + jsl.lu_solve(lu, run.end - x), r, run
+        return i + 1, x + chord_matrix @ (run.end - x), r, run
 
     def unconverged(carry):
         i, _, r, _ = carry
