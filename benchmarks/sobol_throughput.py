@@ -55,7 +55,7 @@ def worker(args) -> dict:
     rows = rows[args.share::args.of]  # this process's share of the rows
     model = DOBBY.build(space)
     t0 = time.perf_counter()
-    evaluate(model, rows[: args.chunk], chunk_size=args.chunk)  # trace + compile + one chunk
+    evaluate(model, rows[: args.chunk], chunk_size=args.chunk, devices=args.devices)  # trace + compile + one chunk
     first = time.perf_counter() - t0
     if args.barrier:  # start timing together with the other processes
         Path(f"{args.barrier}.ready{args.share}").touch()
@@ -64,7 +64,7 @@ def worker(args) -> dict:
     times = []
     for _ in range(args.repeats):
         t0 = time.perf_counter()
-        ev = evaluate(model, rows, chunk_size=args.chunk)
+        ev = evaluate(model, rows, chunk_size=args.chunk, devices=args.devices)
         times.append(time.perf_counter() - t0)
     run = statistics.median(times)
     chunk_time = run * args.chunk / len(rows)
@@ -78,25 +78,31 @@ def worker(args) -> dict:
 
 
 def _env(devices: int = 1) -> dict:
+    """Environment of a child process with ``devices`` CPU devices (0: the CLI's default, one
+    per core)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
                JAXDOBBY_CACHE_DIR="off")
-    env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}"
+    env.pop("XLA_FLAGS", None)
+    if devices:
+        env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}"
     return env
 
 
-def _worker_cmd(args, share: int, of: int, barrier: str | None) -> list[str]:
-    cmd = [sys.executable, __file__, "--worker", "--n", str(args.n), "--rows", str(args.rows),
+def _worker_cmd(args, share: int, of: int, barrier: str | None, devices: int = 1) -> list[str]:
+    cmd = [sys.executable, __file__, "--worker", "--devices", str(devices), "--n", str(args.n), "--rows", str(args.rows),
            "--chunk", str(args.chunk), "--repeats", str(args.repeats), "--share", str(share),
            "--of", str(of), "--no-study"]
     return cmd + (["--barrier", barrier] if barrier else [])
 
 
-def in_processes(processes: int, args) -> dict:
-    """Rows timed in ``processes`` concurrent processes of one CPU device each (their shares),
-    timing started together after every process has compiled; samples/s = rows / slowest."""
+def in_processes(processes: int, args, devices: int = 1) -> dict:
+    """Rows timed in ``processes`` concurrent processes of ``devices`` CPU devices each (their
+    shares), timing started together after every process has compiled; samples/s = rows /
+    slowest."""
     with tempfile.TemporaryDirectory() as d:
         barrier = str(Path(d) / "sync") if processes > 1 else None
-        procs = [subprocess.Popen(_worker_cmd(args, i, processes, barrier), env=_env(),
+        procs = [subprocess.Popen(_worker_cmd(args, i, processes, barrier, devices),
+                                  env=_env(devices),
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
                  for i in range(processes)]
         if barrier:
@@ -112,13 +118,13 @@ def in_processes(processes: int, args) -> dict:
     runs = [json.loads(o.strip().splitlines()[-1]) for o, _ in outs]
     rows = sum(r["rows"] for r in runs)
     seconds = max(r["seconds"] for r in runs)
-    return {"devices": 1, "processes": processes, "rows": rows, "chunk": args.chunk,
+    return {"devices": devices, "processes": processes, "rows": rows, "chunk": args.chunk,
             "seconds": seconds, "samples_per_s": rows / seconds,
             "compile_s": max(r["compile_s"] for r in runs),
             "failed": sum(r["failed"] for r in runs)}
 
 
-def default_study(processes: int, chunk: int) -> dict:
+def default_study(processes: int) -> dict:
     """Wall time of `jaxdobby sobol --n 1024 --second-order` in ``processes`` processes joined
     by jax.distributed on localhost (compilation, analysis and figures included)."""
     import socket
@@ -128,12 +134,13 @@ def default_study(processes: int, chunk: int) -> dict:
         port = sock.getsockname()[1]
     with tempfile.TemporaryDirectory() as d:
         cmd = [sys.executable, "-m", "jaxdobby.cli", "sobol", "--n", "1024", "--second-order",
-               "--out", str(Path(d) / "run"), "--chunk-size", str(chunk), "--json"]
+               "--out", str(Path(d) / "run"), "--json"]
         if processes > 1:
             cmd += ["--coordinator", f"localhost:{port}", "--num-processes", str(processes)]
         t0 = time.perf_counter()
+        env = _env(1) if processes > 1 else _env(0)
         procs = [subprocess.Popen(cmd + (["--process-id", str(i)] if processes > 1 else []),
-                                  env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                   text=True) for i in range(processes)]
         outs = [p.communicate() for p in procs]
         wall = time.perf_counter() - t0
@@ -203,6 +210,9 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="smoke size (a few seconds of running)")
     ap.add_argument("--processes", type=int, nargs="+", default=[1, 2],
                     help="process counts to time (one CPU device each)")
+    ap.add_argument("--devices-list", type=int, nargs="+", default=[2],
+                    help="CPU device counts to time in one process (shard_map)")
+    ap.add_argument("--devices", type=int, default=1, help=argparse.SUPPRESS)
     ap.add_argument("--n", type=int, default=1024, help="base samples of the design")
     ap.add_argument("--rows", type=int, default=2048, help="rows timed per pass")
     ap.add_argument("--chunk", type=int, default=256, help="rows per chunk")
@@ -229,9 +239,11 @@ def main(argv=None):
               "machine": f"{platform.processor() or platform.machine()}, "
                          f"{os.cpu_count()} cores, {platform.system()}",
               "python": platform.python_version(), "jax": jax.__version__,
-              "runs": [in_processes(p, args) for p in args.processes]}
+              "runs": [in_processes(p, args) for p in args.processes]
+              + [in_processes(1, args, d) for d in args.devices_list if d > 1]}
     if args.study:
-        result["studies"] = [default_study(max(args.processes), args.chunk)]
+        result["studies"] = [default_study(1)] + (
+            [default_study(max(args.processes))] if max(args.processes) > 1 else [])
     if args.accuracy:
         result["accuracy"] = accuracy()
     result["markdown"] = markdown(result)

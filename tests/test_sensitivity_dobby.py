@@ -84,3 +84,28 @@ def test_unreachable_stroke_bounds_are_refused_before_running(tmp_path, capsys):
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "parameter 'stroke': bounds must lie in the reachable range" in err
+
+
+def test_dobby_study_joins_jax_distributed_before_building_the_model(tmp_path):
+    """Building the dobby (default machine, reachable strokes) runs JAX, which starts the
+    backend; jax.distributed must be joined before that or it refuses. A one-process
+    coordinator run of a tiny study (N = 4: 24 rows) must therefore complete (it failed with
+    "initialize() must be called before any JAX calls" when the model was built first)."""
+    import os
+    import socket
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        port = s.getsockname()[1]
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(root), JAX_PLATFORMS="cpu")
+    env.pop("XLA_FLAGS", None)
+    p = subprocess.run([sys.executable, "-m", "jaxdobby.sensitivity", "--n", "4", "--no-figures",
+                        "--json", "--coordinator", f"localhost:{port}", "--num-processes", "1",
+                        "--process-id", "0", "--out", str(tmp_path / "run")],
+                       capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert json.loads(p.stdout)["run"]["processes"] == 1

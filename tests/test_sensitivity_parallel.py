@@ -69,6 +69,18 @@ def test_two_host_devices_match_one(reference, tmp_path):
     assert_same(reference, out, indices)
 
 
+def test_devices_flag_alone_gives_two_cpu_devices(reference, tmp_path):
+    """Without XLA_FLAGS, ``--devices 2`` makes the CPU two JAX devices (jax_num_cpu_devices
+    set by the command before JAX starts): sharded, and the same numbers."""
+    out = tmp_path / "run"
+    p = subprocess.run(cli("--out", str(out), "--devices", "2"), capture_output=True, text=True,
+                       timeout=120, env=env())
+    assert p.returncode == 0, p.stderr
+    indices = json.loads(p.stdout)
+    assert indices["run"]["devices"] == 2
+    assert_same(reference, out, indices)
+
+
 def free_port():
     with socket.socket() as s:
         s.bind(("localhost", 0))

@@ -12,8 +12,9 @@ row of ``samples``:
 * **Devices.** A chunk is split over the local devices with ``jax.shard_map`` over a 1-D mesh
   (axis ``"samples"``; C must be a multiple of the device count); each device runs the vmapped
   model on its C / devices rows. ``check_vma=False`` because models are loops (diffrax #735).
-  On CPU, several host devices need ``XLA_FLAGS=--xla_force_host_platform_device_count=K`` set
-  before JAX starts.
+  On CPU, several host devices need ``jax_num_cpu_devices`` (or
+  ``XLA_FLAGS=--xla_force_host_platform_device_count=K``) set before JAX starts; the
+  ``jaxdobby sobol`` command sets one device per core.
 * **Processes.** Under ``jax.distributed`` with P processes, chunk i belongs to process
   i mod P. Every process computes its own chunks on its own devices (no communication during
   the run), writes them to its store, and at the end the outputs of all chunks are exchanged

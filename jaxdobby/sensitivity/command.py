@@ -231,8 +231,8 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
         raise ValueError(f"on_failure must be one of {POLICIES}; got {config.on_failure!r}")
     check_settings(num_resamples=config.num_resamples, conf_level=config.conf_level)
     space = build_space(config, model)
+    initialize_distributed(config)  # before anything starts JAX's backend (build may)
     fn = model.build(space)  # may refuse the problem (e.g. bounds the model cannot run)
-    initialize_distributed(config)
     n_dev = len(local_devices(config.devices))
     chunk = config.chunk_size or -(-DEFAULT_CHUNK // n_dev) * n_dev
     check_chunk_size(chunk, n_dev)  # before anything is written
@@ -281,6 +281,20 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
     return SobolRun(result, evaluation, space, out, tuple(files), writer)
 
 
+def use_cpu_cores(devices: int | None) -> None:
+    """Give JAX's CPU backend one device per core (or ``devices``), so that a chunk is split
+    over all cores of a CPU-only machine without ``XLA_FLAGS``.
+
+    Only possible before JAX has started its backends; when it has (an earlier JAX computation
+    in this Python process), or ``XLA_FLAGS`` already sets the count, nothing changes. On a
+    machine with accelerators their devices are used as before (the CPU backend is separate).
+    """
+    if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", ""):
+        return
+    with contextlib.suppress(RuntimeError, AttributeError):
+        jax.config.update("jax_num_cpu_devices", devices or os.cpu_count() or 1)
+
+
 def main(argv: Sequence[str] | None = None, models: Mapping[str, ModelSpec] = MODELS) -> int:
     """``jaxdobby sobol``: parse options, run, print the table (or JSON). Returns the exit code."""
     parser = argparse.ArgumentParser(prog="jaxdobby sobol",
@@ -288,6 +302,8 @@ def main(argv: Sequence[str] | None = None, models: Mapping[str, ModelSpec] = MO
     add_arguments(parser, models)
     ns = parser.parse_args(argv)
     jax.config.update("jax_enable_x64", True)  # the CLI, not the library, sets float64
+    if ns.coordinator is None:
+        use_cpu_cores(ns.devices)
     try:
         run = run_sobol(SobolConfig.from_args(ns), models[ns.model], progress=ProgressBar())
     except FailedSamplesError as e:
