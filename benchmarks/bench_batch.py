@@ -3,7 +3,7 @@
 The samples are a scrambled Sobol sequence (seed 0) over the default box of the sensitivity
 study (speed 400–1200 r/min, warp force 345–1035 N, stroke 80–140 mm, arm thickness 6–8 mm).
 
-* jaxdobby: :func:`jaxdobby.batch.steady_state_metrics` (``steps=576``) of
+* jaxdobby: :func:`jaxdobby.batch.steady_state_metrics` (default ``steps``) of
   ``jaxdobby.parameters.apply(Setup(), sample)``, under ``jax.vmap`` + ``jax.jit`` in chunks of
   fixed size (the last one padded) — the Sobol pipeline's compiled chunk function — each device
   count in a fresh process (``XLA_FLAGS=--xla_force_host_platform_device_count=K``; a chunk is
@@ -17,11 +17,12 @@ study (speed 400–1200 r/min, warp force 345–1035 N, stroke 80–140 mm, arm 
   sample, with the numpy and with the jitted right-hand side; throughput measured on a subset
   after the workers have compiled, extrapolated.
 
-Two cores for jaxdobby: by default two concurrent one-device processes, each with half of every
-batch. Two host devices in one process (``--two devices``: ``XLA_FLAGS=
---xla_force_host_platform_device_count=2`` and ``shard_map``, the Sobol pipeline's way) hung
-on this 2-core machine under load: after compiling, every thread idle in ``block_until_ready``
-(reproduced with ``jax.jit`` + GSPMD sharding and with ``--xla_cpu_multi_thread_eigen=false``).
+Two cores for jaxdobby: by default two host devices in one process
+(``XLA_FLAGS=--xla_force_host_platform_device_count=2``, a chunk split over them with
+``shard_map``, the Sobol pipeline's way); ``--two processes`` runs two concurrent one-device
+processes instead, each with half of every batch. (Two host devices hung on this machine until
+the batch path built each sample's model sequentially: two batched LAPACK calls deadlocked
+jaxlib's 2-thread pool; see ``jaxdobby.batch.steady.prepare``.)
 
 Accuracy, on the scipy subset: the batch metrics and the scipy metrics against a tight reference
 (DOP853, rtol 1e-10, jitted right-hand side) on the same samples.
@@ -263,9 +264,9 @@ def main(argv=None) -> int:
                    help="largest size timed on 1 device (larger: extrapolated from it)")
     p.add_argument("--out", type=Path, default=common.RESULTS)
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
-    p.add_argument("--two", choices=("processes", "devices"), default="processes",
-                   help="2 cores as 2 one-device processes (default) or as 2 host devices in "
-                        "one process (shard_map; hangs on this machine, see the module)")
+    p.add_argument("--two", choices=("processes", "devices"), default="devices",
+                   help="2 cores as 2 host devices in one process (shard_map; default) or as 2 "
+                        "one-device processes")
     p.add_argument("--keep", type=int, default=2, help=argparse.SUPPRESS)
     p.add_argument("--part", type=int, default=0, help=argparse.SUPPRESS)
     p.add_argument("--parts", type=int, default=1, help=argparse.SUPPRESS)

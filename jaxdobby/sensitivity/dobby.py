@@ -52,7 +52,7 @@ DEFAULT_PROBLEM = ("speed", "warp_force", "stroke", "thickness")
 
 
 def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
-                tolerance: float = 1e-7):
+                tolerance: float = 1e-5):
     """``build(space)`` for the dobby: a pure function of one sample row (see the module).
 
     Args:
