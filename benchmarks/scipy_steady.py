@@ -110,8 +110,26 @@ def _end(sol):
     return sol.y[:, -1]
 
 
-def newton_chord(period_map, x0, tolerance, max_iterations=8, step=1e-2):
-    """jaxdobby's Newton–chord iteration with a finite-difference monodromy at x0."""
+def _try_map(period_map, x):
+    """F(x), or None where the cycle cannot be integrated from x (the chain leaves its
+    workspace: a singular mass matrix, a failed solve, non-finite values)."""
+    try:
+        with np.errstate(all="ignore"):
+            fx = period_map(x)
+    except (RuntimeError, np.linalg.LinAlgError, FloatingPointError, ValueError):
+        return None
+    return fx if np.all(np.isfinite(fx)) else None
+
+
+def newton_chord(period_map, x0, tolerance, max_iterations=8, step=1e-2, max_halvings=8):
+    """jaxdobby's Newton–chord iteration with a finite-difference monodromy at x0.
+
+    Safeguarded: a chord step from which the cycle cannot be integrated (with an approximate
+    monodromy near a resonance, I − Φ is nearly singular and the full step can throw the arm out
+    of the chain's workspace) is halved until it can, at most ``max_halvings`` times.
+    """
+    import scipy.linalg
+
     n = x0.shape[0]
     k = n // 2
     fx = period_map(x0)
@@ -122,17 +140,25 @@ def newton_chord(period_map, x0, tolerance, max_iterations=8, step=1e-2):
         xj = x0.copy()
         xj[j] += h[j]
         monodromy[:, j] = (period_map(xj) - fx) / h[j]
-    import scipy.linalg
-
     lu = scipy.linalg.lu_factor(np.eye(n) - monodromy)
     residual = relative_residual(x0, fx)
-    x = x0 + scipy.linalg.lu_solve(lu, fx - x0)
-    iterations = 1
-    while iterations < max_iterations and residual > tolerance:
-        fx = period_map(x)
+    x, iterations = x0, 1
+    while True:
+        dx = scipy.linalg.lu_solve(lu, fx - x)
+        for _ in range(max_halvings + 1):
+            new = _try_map(period_map, x + dx)
+            if new is not None:
+                break
+            dx = 0.5 * dx
+        else:
+            raise RuntimeError("Newton-chord: no step from which the cycle can be integrated")
+        x, fx = x + dx, new
         residual = relative_residual(x, fx)
-        x = x + scipy.linalg.lu_solve(lu, fx - x)
         iterations += 1
+        if iterations >= max_iterations or residual <= tolerance:
+            break
+    # x is the state whose residual was measured last; the caller integrates one more cycle
+    # from it (as jaxdobby returns the start state of its last cycle).
     return x, residual, iterations
 
 
