@@ -13,6 +13,7 @@
 # link-11 joint, and the link forces.
 
 # %%
+import io
 import os
 
 import jax
@@ -20,12 +21,23 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Image, display
 
 from jaxdobby import Machine, OperatingPoint, simulate
 from jaxdobby.plots import figures
 from jaxdobby.simulate import summary
 
 QUICK = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK") == "1"
+
+
+def show(fig, dpi=80):
+    """Display a figure as a small PNG. (jaxdobby.plots selects matplotlib's Agg backend, which
+    switches the notebook's inline display off, so figures are shown explicitly.)"""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    display(Image(buf.getvalue()))
+
 run = simulate(Machine.default(), OperatingPoint.from_users_units(speed_rpm=800.0,
                                                                   warp_force_n=690.0))
 s = summary(run)
@@ -36,8 +48,7 @@ print(f"periodic steady state: {s['converged']} (residual {s['periodicity_residu
 figs = figures(run.series, label="800 r/min, 690 N")
 for name in ("displacement", "deviation", "velocity", "acceleration", "link_point_deviation",
              "link_forces"):
-    display(figs[name])  # noqa: F821  (IPython)
-plt.close("all")
+    show(figs[name])
 
 # %% [markdown]
 # ## The numbers, beside the source study's

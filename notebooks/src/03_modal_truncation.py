@@ -8,6 +8,7 @@
 # quick version the tests run).
 
 # %%
+import io
 import os
 
 import jax
@@ -15,12 +16,23 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Image, display
 
 from jaxdobby.parameters import Setup
 from jaxdobby.plots import overlay_figure
 from jaxdobby.sweep import markdown_table, run_sweep
 
 QUICK = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK") == "1"
+
+
+def show(fig, dpi=80):
+    """Display a figure as a small PNG. (jaxdobby.plots selects matplotlib's Agg backend, which
+    switches the notebook's inline display off, so figures are shown explicitly.)"""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    display(Image(buf.getvalue()))
+
 modes = [1, 2, 3, 4] if QUICK else [1, 2, 3, 4, 5, 6, 7, 8]
 result = run_sweep(Setup(), "modes", modes)
 print(markdown_table(result))
@@ -33,9 +45,9 @@ a1.plot(modes, pp, "o-"); a1.set_ylabel("displacement deviation, peak to peak [m
 a2.plot(modes, acc, "o-"); a2.set_ylabel("acceleration, peak to peak [m/s²]")
 for a in (a1, a2):
     a.set_xlabel("modes kept"); a.grid(alpha=0.3)
-display(overlay_figure({f"{k} modes": s for k, s in zip(modes, result.series)},  # noqa: F821
-                       "deviation", title="Heald-frame deviation by modes kept"))
-plt.close("all")
+show(fig)
+show(overlay_figure({f"{k} modes": s for k, s in zip(modes, result.series)},
+                    "deviation", title="Heald-frame deviation by modes kept"))
 
 # %%
 change = np.abs(pp - pp[-1]) / pp[-1]
