@@ -72,10 +72,12 @@ def machine_line(env) -> str:
         return ""
     dev, ver = env.get("device", {}) or {}, env.get("versions", {}) or {}
     parts = []
-    if dev:
+    if isinstance(dev, str):  # older results name the device in words
+        parts.append(dev)
+    elif dev:
         parts.append(f"{dev.get('cpu', '?')}, {dev.get('cores_available', '?')} cores"
                      + (f", {dev['memory_gib']:.0f} GiB" if dev.get("memory_gib") else ""))
-    if ver:
+    if isinstance(ver, dict) and ver:
         parts.append(", ".join(f"{k} {v}" for k, v in ver.items()))
     if env.get("date"):
         parts.append(env["date"])
