@@ -44,8 +44,7 @@ from ..dobby import DobbyModel, build_model
 from ..parameters import Setup
 from ..steady_state import relative_residual
 from . import collocation as gl
-from .chain import downstream
-from .chain import Downstream
+from .chain import Downstream, downstream
 from .cycle import ArmTerms, StageTables, arm_terms, node_phases, rigid_arm, tables_at
 from .stepper import _residuals, cycle_pass
 
