@@ -56,10 +56,10 @@ METRICS = ("deviation_pp", "deviation_max", "deviation_min", "velocity_deviation
 """The metrics :func:`steady_state_metrics` returns (SI units), besides the status entries."""
 
 
-def static_state(model: DobbyModel) -> Array:
+def static_state(model: DobbyModel, arm: ArmTerms, ds: Downstream) -> Array:
     """x = (q, 0) at rest in the static equilibrium at t = 0 (bottom dwell), by Newton's method
-    on the full residual (three iterations from q = 0; the chain is nearly linear there)."""
-    arm, ds = arm_terms(model), downstream(model)
+    on the full residual (three iterations from q = 0; the chain is nearly linear there).
+    ``arm``, ``ds``: ``model``'s :func:`arm_terms` and :func:`downstream`."""
     table = tables_at(arm, ds, rigid_arm(model, jnp.zeros(1)), model.period)
     k = model.n_modes
     zero = jnp.zeros((1, k))
@@ -106,7 +106,7 @@ def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
     model = build_model(setup.machine, setup.operating)
     arm, ds = arm_terms(model), downstream(model)
     tables = tables_at(arm, ds, rigid_arm(model, node_phases(steps)), model.period)
-    return Cycle(arm, ds, tables, static_state(model), jnp.asarray(model.period))
+    return Cycle(arm, ds, tables, static_state(model, arm, ds), jnp.asarray(model.period))
 
 
 def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance: float = 1e-5,
