@@ -14,6 +14,22 @@ import numpy as np  # noqa: E402
 MM = 1e3
 
 
+def show(fig, dpi: int = 80) -> None:
+    """Display ``fig`` in a Jupyter notebook as a PNG at ``dpi`` and close it.
+
+    This module selects matplotlib's Agg backend (figures are written to files from the command
+    line), which switches a notebook's inline display off; the notebooks show figures with this.
+    Needs IPython (present in any notebook kernel)."""
+    import io
+
+    from IPython.display import Image, display
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    display(Image(buf.getvalue()))
+
+
 def _axes(title, ylabel, t_ms):
     fig, ax = plt.subplots(figsize=(7.0, 3.6), layout="constrained")
     ax.set_title(title)

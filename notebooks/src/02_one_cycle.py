@@ -13,31 +13,18 @@
 # link-11 joint, and the link forces.
 
 # %%
-import io
 import os
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
-import matplotlib.pyplot as plt
 import numpy as np
-from IPython.display import Image, display
 
 from jaxdobby import Machine, OperatingPoint, simulate
-from jaxdobby.plots import figures
+from jaxdobby.plots import figures, show
 from jaxdobby.simulate import summary
 
 QUICK = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK") == "1"
-
-
-def show(fig, dpi=80):
-    """Display a figure as a small PNG. (jaxdobby.plots selects matplotlib's Agg backend, which
-    switches the notebook's inline display off, so figures are shown explicitly.)"""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    display(Image(buf.getvalue()))
-
 run = simulate(Machine.default(), OperatingPoint.from_users_units(speed_rpm=800.0,
                                                                   warp_force_n=690.0))
 s = summary(run)

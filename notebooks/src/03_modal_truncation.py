@@ -8,7 +8,6 @@
 # quick version the tests run).
 
 # %%
-import io
 import os
 
 import jax
@@ -16,23 +15,12 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import matplotlib.pyplot as plt
 import numpy as np
-from IPython.display import Image, display
 
 from jaxdobby.parameters import Setup
-from jaxdobby.plots import overlay_figure
+from jaxdobby.plots import overlay_figure, show
 from jaxdobby.sweep import markdown_table, run_sweep
 
 QUICK = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK") == "1"
-
-
-def show(fig, dpi=80):
-    """Display a figure as a small PNG. (jaxdobby.plots selects matplotlib's Agg backend, which
-    switches the notebook's inline display off, so figures are shown explicitly.)"""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    display(Image(buf.getvalue()))
-
 modes = [1, 2, 3, 4] if QUICK else [1, 2, 3, 4, 5, 6, 7, 8]
 result = run_sweep(Setup(), "modes", modes)
 print(markdown_table(result))

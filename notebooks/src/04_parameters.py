@@ -13,30 +13,18 @@
 
 # %%
 import dataclasses
-import io
 import os
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
-import matplotlib.pyplot as plt
 import numpy as np
-from IPython.display import Image, display
 
 from jaxdobby.parameters import Setup
+from jaxdobby.plots import show
 from jaxdobby.sweep import markdown_table, run_sweep, trend_figure
 
 QUICK = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK") == "1"
-
-
-def show(fig, dpi=80):
-    """Display a figure as a small PNG. (jaxdobby.plots selects matplotlib's Agg backend, which
-    switches the notebook's inline display off, so figures are shown explicitly.)"""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    display(Image(buf.getvalue()))
-
 studies = {
     "speed": [600.0, 800.0, 1000.0] if QUICK else [400.0, 500.0, 600.0, 700.0, 800.0, 900.0,
                                                    1000.0, 1100.0, 1200.0],

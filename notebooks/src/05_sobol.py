@@ -27,7 +27,6 @@
 
 # %%
 import dataclasses
-import io
 import os
 import tempfile
 from pathlib import Path
@@ -37,24 +36,17 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import matplotlib.pyplot as plt
 import numpy as np
-from IPython.display import Image, Markdown, display
+from IPython.display import Markdown, display
 
 from jaxdobby import sensitivity as sa
 from jaxdobby.parameters import Setup
+from jaxdobby.plots import show
 from jaxdobby.sensitivity.plots import bar_figure
 
 QUICK = os.environ.get("JAXDOBBY_NOTEBOOK_QUICK") == "1"
 N = 32 if QUICK else 1024
 NS = [16, 32] if QUICK else [64, 128, 256, 512, 1024]  # prefixes of the one design
 SCRATCH = Path(tempfile.mkdtemp(prefix="jaxdobby-sobol-"))
-
-
-def show(fig, dpi=80):
-    """Display a figure as a small PNG."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    display(Image(buf.getvalue()))
 
 
 def sobol(model, n, second_order, tag):
