@@ -3,11 +3,13 @@ answers, and the command line's input checks (fast; the full studies are in
 test_optimize_studies.py, marked slow)."""
 
 import json
+import math
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import scipy.optimize
 
 from jaxdobby.cli import main
 from jaxdobby.errors import InputError
@@ -18,6 +20,8 @@ from jaxdobby.optimize import (
     constraint_jacobian,
     optimize,
 )
+from jaxdobby.optimize.design import affine_rows, check_mass_budget
+from jaxdobby.optimize.feasible import FeasibleSet
 from jaxdobby.optimize.loop import projected_gradient
 from jaxdobby.parameters import Setup
 
@@ -105,15 +109,95 @@ def no_constraints(u):
     return np.zeros(0), np.zeros((0, u.shape[0]))
 
 
+def circle_constraint(u):
+    # u0² + u1² ≤ 1/2 (not linear: the augmented Lagrangian's job)
+    return np.array([u[0] ** 2 + u[1] ** 2 - 0.5]), np.array([2.0 * u])
+
+
 def test_lbfgs_augmented_lagrangian_reaches_the_kkt_point():
-    # min (u0−0.9)² + (u1−0.8)² s.t. u0 + u1 ≤ 1 on [0,1]²: u* = (0.55, 0.45), λ* = 0.7.
-    result = optimize(quadratic([0.9, 0.8]), linear_constraint, np.array([0.1, 0.1]),
+    # min |u − p|², p = (0.9, 0.8), s.t. |u|² ≤ 1/2: the projection of p onto the circle of
+    # radius r = √½, u* = r·p/|p|, with λ* = |p|/r − 1 (from 2(u − p) + 2λu = 0).
+    p = np.array([0.9, 0.8])
+    r = math.sqrt(0.5)
+    result = optimize(quadratic(p), circle_constraint, np.array([0.1, 0.1]),
                       Settings(optimizer="lbfgs", steps=100, tolerance=1e-7))
+    assert result.converged
+    np.testing.assert_allclose(result.u, r * p / np.linalg.norm(p), atol=1e-6)
+    np.testing.assert_allclose(result.multipliers, [np.linalg.norm(p) / r - 1.0], atol=1e-5)
+    assert result.optimality["projected_gradient"] < 1e-6
+    assert result.optimality["violation"] < 1e-8
+
+
+@pytest.mark.parametrize("optimizer", ["lbfgs", "adam"])
+def test_linear_constraint_is_held_by_projection(optimizer):
+    # min (u0−0.9)² + (u1−0.8)² s.t. u0 + u1 ≤ 1 on [0,1]²: u* = (0.55, 0.45), λ* = 0.7
+    # (2(u − p) + λ(1, 1) = 0 on the line). Every iterate is feasible (projection).
+    steps = 20 if optimizer == "lbfgs" else 400
+    result = optimize(quadratic([0.9, 0.8]), linear_constraint, np.array([0.1, 0.1]),
+                      Settings(optimizer=optimizer, steps=steps, tolerance=1e-7), linear=(0,))
     assert result.converged
     np.testing.assert_allclose(result.u, [0.55, 0.45], atol=1e-6)
     np.testing.assert_allclose(result.multipliers, [0.7], atol=1e-5)
     assert result.optimality["projected_gradient"] < 1e-6
-    assert result.optimality["violation"] < 1e-8
+    assert all(r.u.sum() <= 1.0 + 1e-12 for r in result.history)
+    if optimizer == "lbfgs":  # a quadratic on a face: a handful of steps
+        assert len(result.history) <= 6
+
+
+def test_bound_and_linear_constraint_active_together():
+    # min |u − (2, 0.5, 0.2)|² on [0,1]³ with u0 + u1 + u2 ≤ 1.2. KKT by hand: u = clip(p − μ·1)
+    # with μ = λ/2; u0 = 1 at its bound, u2 = 0 at its bound, 1 + 0.5 − μ = 1.2 → μ = 0.3,
+    # so u* = (1, 0.2, 0) and λ* = 0.6.
+    def constraint(u):
+        return np.array([u.sum() - 1.2]), np.ones((1, 3))
+
+    result = optimize(quadratic([2.0, 0.5, 0.2]), constraint, np.full(3, 0.1),
+                      Settings(optimizer="lbfgs", steps=30, tolerance=1e-9), linear=(0,))
+    assert result.converged
+    np.testing.assert_allclose(result.u, [1.0, 0.2, 0.0], atol=1e-9)
+    np.testing.assert_allclose(result.multipliers, [0.6], atol=1e-8)
+
+
+def _slsqp_projection(v, a, b):
+    """argmin |x − v|² over 0 ≤ x ≤ 1, a·x ≤ b by scipy's SLSQP."""
+    return scipy.optimize.minimize(
+        lambda y: np.sum((y - v) ** 2), np.clip(v, 0, 1), jac=lambda y: 2 * (y - v),
+        bounds=[(0.0, 1.0)] * v.shape[0], method="SLSQP",
+        options={"ftol": 1e-14, "maxiter": 500},
+        constraints=[{"type": "ineq", "fun": lambda y: b - a @ y, "jac": lambda y: -a}]).x
+
+
+def test_projection_onto_box_and_halfspace_matches_a_qp_solver():
+    # Against scipy's SLSQP on the same small QP, min |x − v|² s.t. 0 ≤ x ≤ 1, a·x ≤ b.
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        a = rng.uniform(-1.0, 2.0, size=5)
+        b = float(rng.uniform(0.2, 1.5))
+        v = rng.uniform(-0.5, 1.5, size=5)
+        x = FeasibleSet(a=a, b=b).project(v)
+        ref = _slsqp_projection(v, a, b)
+        # SLSQP stops at ftol 1e-14 on |x − v|²: ~1e-7 in x; the projection is exact.
+        np.testing.assert_allclose(x, ref, atol=1e-6)
+        assert a @ x <= b + 1e-14 and x.min() >= 0.0 and x.max() <= 1.0
+
+
+def test_infeasible_linear_constraint_is_refused():
+    with pytest.raises(ValueError, match="cannot be met in the box"):
+        FeasibleSet(a=np.array([1.0, 1.0]), b=-0.1)
+
+
+def test_mass_is_held_by_projection_and_a_too_small_budget_is_refused():
+    # The mass is linear in the depths alone (and in t alone), not in both at once.
+    depth = DesignSpace.create(Setup(), ["depth"])
+    both = DesignSpace.create(Setup(), ["thickness", "depth"])
+    limits = Constraints(mass_budget=0.5, frequency_floor=100.0)
+    assert affine_rows(depth, limits) == (0,)
+    assert affine_rows(both, limits) == ()
+    # Lightest arm in the default bounds: 20 mm deep, 6 mm thick (t fixed) = half the default
+    # 40 mm arm's 0.42304 kg.
+    with pytest.raises(InputError, match=r"mass budget = 0.2 kg is below the lightest arm "
+                                         r"within the bounds \(0.2115 kg\)"):
+        check_mass_budget(depth, Constraints(mass_budget=0.2))
 
 
 @pytest.mark.parametrize("optimizer", ["lbfgs", "adam"])

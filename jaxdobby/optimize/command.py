@@ -29,6 +29,7 @@ Everything can be given by flags or in a problem file (``--problem FILE.toml``; 
     tolerance = 1e-4
     gradient = "auto"             # auto | forward | reverse
     rk4_steps = 6800              # optional; default from the highest frequency
+    basis_updates = 2             # re-solves on the optimum's own modes (0: fixed basis)
 
 The starting machine is the default one, or ``--config FILE.toml`` (the ``simulate`` format).
 Bad input ends with one line naming the field and its valid range (exit status 2).
@@ -51,7 +52,7 @@ PROBLEM_KEYS = {
                   "heald_frame_mass_kg", "blade_inertia_kg_m2"),
     "constraints": ("mass_budget_kg", "frequency_floor_hz", "pitch_mm", "clearance_mm"),
     "optimizer": ("name", "steps", "learning_rate", "inner_steps", "penalty", "tolerance",
-                  "gradient", "rk4_steps"),
+                  "gradient", "rk4_steps", "basis_updates"),
 }
 """Valid tables and keys of a problem file."""
 
@@ -93,6 +94,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="projected-gradient tolerance (default 1e-4)")
     o.add_argument("--gradient", choices=["auto", "forward", "reverse"], help="default auto")
     o.add_argument("--rk4-steps", type=int, metavar="N", help="RK4 steps per cycle")
+    o.add_argument("--basis-updates", type=int, metavar="K",
+                   help="after converging, rebuild the reduction basis from the optimum's own "
+                        "modes and optimise again, up to K times (default 2; 0 keeps the "
+                        "starting design's modes throughout)")
     m = p.add_argument_group("machine")
     m.add_argument("--config", metavar="FILE.toml", help="starting machine (simulate format)")
     m.add_argument("--warp-force", type=float, metavar="N", help="peak warp force [N]")
@@ -237,6 +242,7 @@ def build_study(ns: argparse.Namespace):
     rk4 = pick(ns.rk4_steps, opt, "rk4_steps", None)
     if rk4 is not None:
         rk4 = _int(rk4, "--rk4-steps", 100, 10_000_000)
+    updates = _int(pick(ns.basis_updates, opt, "basis_updates", 2), "--basis-updates", 0, 100)
 
     sim_ns = argparse.Namespace(config=ns.config, speed=None, warp_force=ns.warp_force,
                                 stroke=ns.stroke, thickness=ns.thickness, modes=None,
@@ -249,7 +255,7 @@ def build_study(ns: argparse.Namespace):
                           acceleration_weight=weight)
     return Study(space=space, objective=objective,
                  limits=Constraints(mass_budget=mass_budget, frequency_floor=floor),
-                 settings=settings, gradient=gradient, steps=rk4)
+                 settings=settings, gradient=gradient, steps=rk4, basis_updates=updates)
 
 
 def _check_start(space, jnp) -> None:

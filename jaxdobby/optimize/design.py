@@ -308,6 +308,41 @@ def _constraint_values_and_jacobian(space, limits, u):
     return fn(u), jax.jacfwd(fn)(u)
 
 
+def affine_rows(space: DesignSpace, limits: Constraints) -> tuple[int, ...]:
+    """Rows of :func:`constraints` that are affine in u over the whole box (to round-off).
+
+    The arm mass is ρ·t·∫d ds: linear in the thickness alone and in the depth control points
+    alone (piecewise-linear depth, integrated exactly), bilinear when both vary, and the first
+    frequency is never linear. Checked numerically rather than by name: the Jacobian at the
+    corners u = 0, u = 1 and two inner points must agree, and c(1) − c(0) = J·1.
+    """
+    points = [jnp.zeros(space.size), jnp.ones(space.size), jnp.full(space.size, 0.3),
+              jnp.linspace(0.9, 0.1, space.size)]
+    values = [constraint_jacobian(space, limits, u) for u in points]
+    c = np.stack([np.asarray(v[0]) for v in values])
+    jac = np.stack([np.asarray(v[1]) for v in values])
+    rows = []
+    for k in range(c.shape[1]):
+        scale = float(np.max(np.abs(jac[:, k]))) + 1e-300
+        same = np.all(np.abs(jac[:, k] - jac[0, k]) <= 1e-10 * scale)
+        secant = abs(c[1, k] - c[0, k] - float(np.sum(jac[0, k]))) <= 1e-10 * scale * space.size
+        if same and secant:
+            rows.append(k)
+    return tuple(rows)
+
+
+def check_mass_budget(space: DesignSpace, limits: Constraints) -> None:
+    """The budget must admit the lightest arm in the bounds (every variable at its lower bound:
+    the mass grows with thickness and depth, and the others do not change it)."""
+    if limits.mass_budget is None:
+        return
+    lightest = float(arm_mass(space.setup(jnp.zeros(space.size))))
+    if lightest > limits.mass_budget:
+        raise InputError(f"mass budget = {limits.mass_budget:g} kg is below the lightest arm "
+                         f"within the bounds ({lightest:.4f} kg): raise the budget or lower the "
+                         "thickness/depth bounds")
+
+
 @eqx.filter_jit
 def properties(space: DesignSpace, u: Array, own_modes: bool = False) -> dict[str, Array]:
     """Arm mass [kg], first coupled frequency [Hz] and rigid stroke [m] of the design ``u``
