@@ -8,10 +8,10 @@ design variables in SI units (set with :func:`jaxdobby.parameters.apply`):
 * eight: ``thickness``, ``straight_length``, ``arc_radius``, ``tip_length``,
   ``ring_joint_position``, ``youngs_modulus``, ``density``, ``heald_frame_mass``.
 
-jaxdobby: ``jax.jacfwd`` of ``simulate(...).metrics["deviation_pp"]`` (the RK4 path at the
-default step count; forward mode through the periodic state by the implicit-function theorem),
-jitted; compile time apart, median of repeats, and the same for the forward solve alone, so the
-gradient's cost is also given in forward solves.
+jaxdobby: ``jax.jacfwd`` (forward mode) and ``jax.grad`` (reverse mode) of
+``simulate(...).metrics["deviation_pp"]`` (the default collocation path; through the periodic
+state by the implicit-function theorem), jitted; compile time apart, median of repeats, and the
+same for the forward solve alone, so the gradient's cost is also given in forward solves.
 
 scipy: central finite differences, two steady-state solves per variable
 (:func:`benchmarks.scipy_steady.solve_setup`, DOP853, jitted right-hand side — the fastest
@@ -46,26 +46,28 @@ def jax_side(modes: int, repeats: int, quick: bool = False) -> dict:
 
     from jaxdobby import Machine, OperatingPoint
     from jaxdobby.parameters import PARAMETERS, Setup, apply
-    from jaxdobby.simulate import default_steps, simulate
+    from jaxdobby.simulate import resolve_method, simulate
 
     machine = Machine.default(n_modes=modes)
-    steps = default_steps(machine, OperatingPoint())
+    method, steps = resolve_method(machine, OperatingPoint())
     base = Setup(machine=machine)
     x0 = jnp.array([float(PARAMETERS[n].get(base)) for n in VARIABLES])
 
     def deviation(x):
         s = apply(base, {n: x[i] for i, n in enumerate(VARIABLES)})
-        return simulate(s.machine, s.operating, steps=steps).metrics["deviation_pp"]
+        return simulate(s.machine, s.operating, method=method,
+                        steps=steps).metrics["deviation_pp"]
 
     def deviation_thickness(t):
         return deviation(x0.at[0].set(t))
 
     cases = {"forward": (jax.jit(deviation), x0),
              "gradient_thickness": (jax.jit(jax.jacfwd(deviation_thickness)), x0[0]),
-             "gradient_8": (jax.jit(jax.jacfwd(deviation)), x0)}
-    if quick:  # one forward-mode compile fewer (minutes on 2 cores): d/d thickness from the 8
-        del cases["gradient_thickness"]
-    out = {"steps": steps, "x0": np.asarray(x0).tolist()}
+             "gradient_8": (jax.jit(jax.jacfwd(deviation)), x0),
+             "gradient_8_reverse": (jax.jit(jax.grad(deviation)), x0)}
+    if quick:  # two gradient compiles fewer (minutes on 2 cores): d/d thickness from the 8
+        del cases["gradient_thickness"], cases["gradient_8_reverse"]
+    out = {"method": method, "steps": steps, "x0": np.asarray(x0).tolist()}
     for name, (fn, x) in cases.items():
         t0 = time.perf_counter()
         value = common.block(fn(x))
@@ -80,6 +82,7 @@ def jax_side(modes: int, repeats: int, quick: bool = False) -> dict:
     if quick:
         out["gradient_thickness"] = dict(out["gradient_8"], value=out["gradient_8"]["value"][0],
                                          note="--quick: the first entry of the 8-gradient")
+        out["gradient_8_reverse"] = dict(out["gradient_8"], note="--quick: forward mode")
     return out
 
 
@@ -149,10 +152,11 @@ def main(argv=None) -> int:
                  "forward_solves": jx["gradient_thickness"]["median_s"] / fwd,
                  "scipy_s": sp["gradient_thickness_s"],
                  "ratio": sp["gradient_thickness_s"] / jx["gradient_thickness"]["median_s"]},
-            {"case": "gradient w.r.t. 8 design variables", "jaxdobby_s": jx["gradient_8"]["median_s"],
-                 "forward_solves": jx["gradient_8"]["median_s"] / fwd,
-                 "scipy_s": sp["gradient_8_s_extrapolated"], "extrapolated": True,
-                 "ratio": sp["gradient_8_s_extrapolated"] / jx["gradient_8"]["median_s"]}]
+            *({"case": f"gradient w.r.t. 8 design variables, {mode} mode",
+               "jaxdobby_s": jx[key]["median_s"], "forward_solves": jx[key]["median_s"] / fwd,
+               "scipy_s": sp["gradient_8_s_extrapolated"], "extrapolated": True,
+               "ratio": sp["gradient_8_s_extrapolated"] / jx[key]["median_s"]}
+              for mode, key in (("forward", "gradient_8"), ("reverse", "gradient_8_reverse")))]
     record["rows"] = rows
     d = record["derivative_thickness"]
     record["markdown"] = markdown(rows) + (

@@ -5,9 +5,10 @@ What is timed (float64 on both sides, ``block_until_ready``, medians of repeats)
 * jaxdobby **cold**: ``simulate()`` in a fresh Python process (import, tracing, compilation and
   the run; :mod:`benchmarks._cold`), without and with the persistent compilation cache (the
   second process with the cache loads what the first compiled);
-* jaxdobby **warm**: ``simulate()`` as the command line calls it (RK4, steps chosen from the
-  modes) and, for the work–precision figure, RK4 at other step counts and the adaptive path at
-  several tolerances (compile time reported apart);
+* jaxdobby **warm**: ``simulate()`` as the command line calls it (Gauss collocation, 432 steps
+  per cycle) and, for the work–precision figure, collocation at other step counts, RK4 (the step
+  from the highest mode, and half of it) and the adaptive path at several tolerances (compile
+  time reported apart);
 * scipy: the periodic steady state by cycling ``solve_ivp`` (:mod:`benchmarks.scipy_steady`) with
   the plain numpy right-hand side and with the jitted one (plus its Jacobian for the implicit
   methods), RK45, DOP853, LSODA and Radau at several tolerances.
@@ -83,12 +84,16 @@ def jax_runs(quick: bool, repeats: int, reference, numpy_model, machine) -> list
     from benchmarks.scipy_model import METRICS, metric_error
     from benchmarks.scipy_steady import metrics_on
     from jaxdobby import OperatingPoint
+    from jaxdobby.batch import DEFAULT_STEPS as COLLOCATION_STEPS
     from jaxdobby.simulate import default_steps, simulate
 
     n = default_steps(machine, OperatingPoint())
-    cases = [("jaxdobby simulate()", {}, "rk4", n)]
+    cases = [("jaxdobby simulate()", {}, "collocation", COLLOCATION_STEPS)]
     if not quick:
-        cases += [(f"jaxdobby rk4 steps={m}", {"steps": m}, "rk4", m) for m in (2 * n, 4 * n)]
+        cases += [(f"jaxdobby collocation steps={m}", {"steps": m}, "collocation", m)
+                  for m in (216, 288, 864)]
+        cases += [(f"jaxdobby rk4 steps={m}", {"method": "rk4", "steps": m}, "rk4", m)
+                  for m in (n, 2 * n)]
         cases += [(f"jaxdobby adaptive rtol={r:g}",
                    {"method": "adaptive", "rtol": r, "atol": 1e-4 * r,
                     "tolerance": max(1e-6, 100 * r)}, "adaptive", r) for r in (1e-6, 1e-8)]

@@ -73,7 +73,8 @@ def measure(name, variables, steps, repeats) -> dict:
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--steps", type=int, default=6800, help="RK4 steps (same for every case)")
+    ap.add_argument("--steps", type=int, default=432,
+                    help="collocation steps per cycle (same for every case)")
     ap.add_argument("--out", default="benchmarks/results")
     ap.add_argument("--only", nargs="*", help="case names to run (default: all)")
     ap.add_argument("--rows-from", metavar="LOG", help="keep the JSON rows a previous run "
@@ -110,9 +111,9 @@ def write(out: Path, rows: list[dict], note: str) -> str:
              f"Device {jax.devices()[0]}, {os.cpu_count()} cores. {note}".strip(), "",
              header, "|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['case']} | {r['n_variables']} | {r['solve_s']:.2f} | "
-                     f"{r['forward_gradient_s']:.1f} ({r['forward_ratio']:.1f}×) | "
-                     f"{r['reverse_gradient_s']:.1f} ({r['reverse_ratio']:.1f}×) | "
+        lines.append(f"| {r['case']} | {r['n_variables']} | {r['solve_s']:.3f} | "
+                     f"{r['forward_gradient_s']:.3f} ({r['forward_ratio']:.1f}×) | "
+                     f"{r['reverse_gradient_s']:.3f} ({r['reverse_ratio']:.1f}×) | "
                      f"{r['forward_compile_s']:.0f} / {r['reverse_compile_s']:.0f} |")
     text = "\n".join(lines) + "\n"
     (out / "gradient_cost.md").write_text(text)

@@ -397,14 +397,29 @@ METRICS = ("deviation_pp", "deviation_min", "deviation_max", "velocity_deviation
 """The metrics compared between jaxdobby and scipy (jaxdobby.metrics.cycle_metrics names)."""
 
 
+def refined_extremes(x: np.ndarray) -> tuple[float, float]:
+    """(max, min) of a periodic signal sampled uniformly over one period (last sample = first),
+    each extreme sample refined by the vertex of the parabola through it and its neighbours —
+    the rule of :func:`jaxdobby.metrics.extremes`, written again here in numpy."""
+    y = np.asarray(x)[:-1]
+    out = []
+    for i, sign in ((int(np.argmax(y)), 1.0), (int(np.argmin(y)), -1.0)):
+        a, b, c = y[i - 1], y[i], y[(i + 1) % len(y)]
+        curvature = a - 2.0 * b + c
+        out.append(b - (a - c) ** 2 / (8.0 * curvature) if sign * curvature < 0.0 else b)
+    return out[0], out[1]
+
+
 def cycle_metrics(series: dict) -> dict:
     """The compared metrics from :meth:`NumpyDobby.outputs` (same definitions as jaxdobby)."""
     dev = series["heald_flexible"] - series["heald_rigid"]
     vdev = series["velocity_flexible"] - series["velocity_rigid"]
     acc = series["acceleration_flexible"]
-    return {"deviation_pp": float(np.ptp(dev)), "deviation_min": float(dev.min()),
-                "deviation_max": float(dev.max()), "velocity_deviation_amp": float(np.ptp(vdev)),
-                "acceleration_amp": float(np.ptp(acc))}
+    hi, lo = refined_extremes(dev)
+    v_hi, v_lo = refined_extremes(vdev)
+    a_hi, a_lo = refined_extremes(acc)
+    return {"deviation_pp": hi - lo, "deviation_min": lo, "deviation_max": hi,
+            "velocity_deviation_amp": v_hi - v_lo, "acceleration_amp": a_hi - a_lo}
 
 
 _JITTED: dict = {}

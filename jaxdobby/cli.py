@@ -57,7 +57,8 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--modes", type=int, metavar="K", help="modes of the arm kept, 1-30 (default 4)")
     p.add_argument("--coupling", choices=["two-way", "one-way"], help="default two-way")
     p.add_argument("--warp-law", choices=["restoring", "opposing"], help="default restoring")
-    p.add_argument("--method", choices=["rk4", "adaptive"], help="integrator (default rk4)")
+    p.add_argument("--method", choices=["collocation", "rk4", "adaptive"],
+                   help="integrator (default collocation; rk4 for --coupling one-way)")
     p.add_argument("--config", metavar="FILE.toml",
                    help="configuration file (any model parameter; see README)")
 

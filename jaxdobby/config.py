@@ -22,7 +22,7 @@ optional, unknown tables and keys are errors. Example (all values are the defaul
     warp_law = "restoring"     # or "opposing"
 
     [solver]
-    method = "rk4"             # or "adaptive"
+    method = "collocation"     # or "rk4", "adaptive" (default: collocation; rk4 for one-way)
 
 Every key of every table is listed by ``jaxdobby simulate --list-parameters`` and in the README.
 """
@@ -51,7 +51,8 @@ OPTIONS: dict[str, dict[str, str]] = {
               "warp_law": f"one of {', '.join(WARP_LAWS)}"},
     "linkage": {"motion_law": f"modulator law, one of {', '.join(sorted(MOTION_LAWS))}"},
     "solver": {"method": f"one of {', '.join(METHODS)}",
-               "steps": "RK4 steps per cycle, integer >= 100 (default: from the highest mode)"},
+               "steps": "steps per cycle of collocation or RK4, integer >= 72 (default: 432 for "
+                        "collocation, from the highest mode for RK4)"},
 }
 """Non-float settings by table: key → what is valid."""
 
@@ -60,7 +61,7 @@ OPTIONS: dict[str, dict[str, str]] = {
 class RunOptions:
     """Settings of a run that are not float parameters of the model."""
 
-    method: str = "rk4"
+    method: str | None = None  # None: collocation for two-way coupling, RK4 for one-way
     steps: int | None = None
 
 
@@ -96,7 +97,7 @@ def check_value(p: Parameter, value, where: str) -> list[float]:
 def _check_option(section: str, key: str, value, options: RunOptions, setup: Setup) -> Setup:
     where = f"[{section}] {key}"
     if key in ("n_modes", "steps"):
-        low = 1 if key == "n_modes" else 100
+        low = 1 if key == "n_modes" else 72
         high = MAX_MODES if key == "n_modes" else 10_000_000
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
             raise InputError(f"{where} = {value!r} is outside the valid range "
@@ -185,8 +186,10 @@ def to_toml(setup: Setup, options: RunOptions | None = None) -> str:
     sections["model"] += [f"n_modes = {m.n_modes}", f'coupling = "{m.coupling}"',
                           f'warp_law = "{m.warp_law}"']
     if options is not None:
-        sections["solver"] = [f'method = "{options.method}"'] + (
+        solver = ([f'method = "{options.method}"'] if options.method is not None else []) + (
             [f"steps = {options.steps}"] if options.steps is not None else [])
+        if solver:
+            sections["solver"] = solver
     return "\n".join(f"[{name}]\n" + "\n".join(lines) + "\n" for name, lines in sections.items())
 
 
@@ -199,8 +202,9 @@ def keys_markdown() -> str:
     by_key = {(p.section, p.key): p for p in PARAMETERS.values()}
     option_defaults = {"n_modes": defaults.machine.n_modes, "coupling": defaults.machine.coupling,
                        "warp_law": defaults.machine.warp_law,
-                       "motion_law": defaults.machine.linkage.motion_law, "method": "rk4",
-                       "steps": "from the highest mode"}
+                       "motion_law": defaults.machine.linkage.motion_law,
+                       "method": "collocation (rk4 for one-way)",
+                       "steps": "432 (collocation), from the highest mode (rk4)"}
     for section, keys in keys_by_section().items():
         for key, text in keys.items():
             p = by_key.get((section, key))

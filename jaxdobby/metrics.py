@@ -2,7 +2,11 @@
 
 Following the source study's usage, the *amplitude* of a signal over the cycle is its
 peak-to-peak range, max − min (its 1.89 mm "displacement deviation amplitude" is the range
-−0.66 … +1.23 mm). Extremes are taken over the sampled time series.
+−0.66 … +1.23 mm). Extremes are taken over the sampled time series of one period (uniform
+samples, the last one at t = T repeating the first), the extreme sample refined by the vertex of
+the parabola through it and its two neighbours (wrapping around the period): the sampled
+maximum of a sinusoid with n samples per period is low by ≈ (π/n)²/2 of its amplitude, the
+refined one by O((π/n)⁴).
 
 ``max`` and ``min`` are only piecewise differentiable (the location of the peak jumps), so the
 design optimiser uses smooth surrogates: the log-sum-exp soft maximum of the signal normalised by
@@ -21,9 +25,33 @@ SHARPNESS = 20.0
 """β of the log-sum-exp surrogates (on RMS-normalised signals)."""
 
 
-def peak_to_peak(x: Array, axis=0) -> Array:
-    """max − min along ``axis``."""
-    return jnp.max(x, axis=axis) - jnp.min(x, axis=axis)
+def extremes(x: Array) -> tuple[Array, Array]:
+    """Refined maximum and minimum of a periodic signal sampled uniformly over one period.
+
+    Args:
+        x: samples at t = 0, T/n, …, T (shape (n + 1,); the last repeats the first).
+
+    Returns:
+        (max, min): the largest and smallest sample, each replaced by the vertex of the parabola
+        through it and its neighbours (periodic wrap) where that parabola has its extremum
+        there (within half a sample). Differentiable wherever the extreme sample does not change.
+    """
+    y = x[:-1]
+    before, after = jnp.roll(y, 1), jnp.roll(y, -1)
+    curvature = before - 2.0 * y + after
+    slope = before - after
+    safe = jnp.where(curvature == 0.0, 1.0, curvature)
+    vertex = y - slope**2 / (8.0 * safe)
+    i, j = jnp.argmax(y), jnp.argmin(y)
+    hi = jnp.where(curvature[i] < 0.0, vertex[i], y[i])
+    lo = jnp.where(curvature[j] > 0.0, vertex[j], y[j])
+    return hi, lo
+
+
+def peak_to_peak(x: Array) -> Array:
+    """Refined max − min of a periodic signal sampled over one period (see :func:`extremes`)."""
+    hi, lo = extremes(x)
+    return hi - lo
 
 
 def rms(x: Array, axis=0) -> Array:
@@ -54,19 +82,21 @@ def cycle_metrics(series) -> dict[str, Array]:
     """
     dev = series.deviation
     link11 = jnp.linalg.norm(series.link11_force, axis=-1)
+    dev_max, dev_min = extremes(dev)
+    ring_max, ring_min = extremes(series.ring_link_force)
     return dict(
-        deviation_min=jnp.min(dev),
-        deviation_max=jnp.max(dev),
-        deviation_pp=peak_to_peak(dev),
+        deviation_min=dev_min,
+        deviation_max=dev_max,
+        deviation_pp=dev_max - dev_min,
         link_point_deviation_x=peak_to_peak(series.link_point_deviation[:, 0]),
         link_point_deviation_y=peak_to_peak(series.link_point_deviation[:, 1]),
         velocity_deviation_amp=peak_to_peak(series.velocity_deviation),
         acceleration_amp=peak_to_peak(series.acceleration_flexible),
         acceleration_rigid_amp=peak_to_peak(series.acceleration_rigid),
         acceleration_deviation_amp=peak_to_peak(series.acceleration_deviation),
-        ring_link_force_max=jnp.max(jnp.abs(series.ring_link_force)),
-        link11_force_max=jnp.max(link11),
+        ring_link_force_max=jnp.maximum(ring_max, -ring_min),
+        link11_force_max=extremes(link11)[0],
         deviation_pp_smooth=smooth_peak_to_peak(dev),
-        deviation_rms=rms(dev),
+        deviation_rms=rms(dev[:-1]),  # one period: the last sample repeats the first
         acceleration_amp_smooth=smooth_peak_to_peak(series.acceleration_flexible),
     )

@@ -64,6 +64,12 @@ def crank_angle(
     """
     shape_law = motion_law(law).displacement
     psi = jnp.asarray(speed, dtype=float) * jnp.asarray(t, dtype=float) + 0.5 * dwell
-    n = jnp.floor(psi / _TWO_PI)
-    tau = (psi - _TWO_PI * n - dwell) / (_TWO_PI - dwell)
-    return start_angle + index_angle * (n + shape_law(tau))
+    # φ = φ₀ + π(n + s(τ)) with n = ⌊u⌋ completed picks, u = ψ/2π, written as
+    # φ₀ + π(u − [f − s(τ(f))]) with f = u − ⌊u⌋: the bracket is 0 at f = 0 and at f = 1, so the
+    # angle stays continuous even where XLA evaluates ⌊u⌋ twice with different rounding (seen on
+    # CPU at a pick boundary inside a large vectorised program: one pick off, the heald frame at
+    # the wrong end of its stroke for one sample).
+    u = psi / _TWO_PI
+    f = u - jnp.floor(u)
+    tau = (_TWO_PI * f - dwell) / (_TWO_PI - dwell)
+    return start_angle + index_angle * (u - (f - shape_law(tau)))

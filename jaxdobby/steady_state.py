@@ -52,18 +52,23 @@ def relative_residual(x: Array, fx: Array) -> Array:
     return jnp.maximum(block(slice(0, k)), block(slice(k, None)))
 
 
-def _newton(period_map: Callable[[Array], Array], x0: Array, tolerance, max_iterations: int):
+def _newton(period_map: Callable[[Array], Array], x0: Array, tolerance, max_iterations: int,
+            linearised: Callable[[Array], tuple[Array, Array]] | None = None):
     """Newton–chord iterations: the monodromy matrix is computed once, at the starting guess
     (one solve carrying 2k tangents), and reused; each further iteration costs one plain
     solve. The equations are nearly linear in the elastic state, so the chord method converges
     about as fast as full Newton here (each iteration gains the ratio of the nonlinear part,
-    ~1e-3) at a fraction of the cost."""
+    ~1e-3) at a fraction of the cost. ``linearised(x0)`` may supply (F(x0), an approximate
+    monodromy matrix) instead (the chord method only needs an approximation)."""
     n = x0.shape[0]
     eye = jnp.eye(n, dtype=x0.dtype)
-    # All 2k tangents ride through one solve as a batch (cheaper here than jax.linearize,
-    # which stores the primal trace and replays it).
-    values, columns = jax.vmap(lambda v: jax.jvp(period_map, (x0,), (v,)))(eye)
-    fx, monodromy = values[0], columns.T
+    if linearised is None:
+        # All 2k tangents ride through one solve as a batch (cheaper here than
+        # jax.linearize, which stores the primal trace and replays it).
+        values, columns = jax.vmap(lambda v: jax.jvp(period_map, (x0,), (v,)))(eye)
+        fx, monodromy = values[0], columns.T
+    else:
+        fx, monodromy = linearised(x0)
     lu = jax.scipy.linalg.lu_factor(eye - monodromy)
     x1 = x0 + jax.scipy.linalg.lu_solve(lu, fx - x0)
 
@@ -80,7 +85,9 @@ def _newton(period_map: Callable[[Array], Array], x0: Array, tolerance, max_iter
 
 
 def periodic_state(period_map: Callable[[Array], Array], x0: Array, *, tolerance=1e-9,
-                   max_iterations: int = 8) -> ShootingResult:
+                   max_iterations: int = 8,
+                   linearised: Callable[[Array], tuple[Array, Array]] | None = None
+                   ) -> ShootingResult:
     """Solve F(x) = x by the Newton–chord method with the monodromy matrix at ``x0``.
 
     Args:
@@ -89,10 +96,13 @@ def periodic_state(period_map: Callable[[Array], Array], x0: Array, *, tolerance
         x0: starting guess (e.g. zeros: the mechanism at rest in its rigid motion).
         tolerance: relative residual (see :func:`relative_residual`) to stop at.
         max_iterations: Newton iterations at most (static).
+        linearised: optional x ↦ (F(x), Φ̃) with Φ̃ an approximation of the monodromy matrix
+            ∂F/∂x, used by the chord iterations instead of the exact one (cheaper; the root and
+            its derivatives do not depend on it, only the number of iterations does).
     """
     n = x0.shape[0]
     iterations, root, residual = jax.lax.stop_gradient(
-        _newton(period_map, jax.lax.stop_gradient(x0), tolerance, max_iterations))
+        _newton(period_map, jax.lax.stop_gradient(x0), tolerance, max_iterations, linearised))
 
     def tangent_solve(g, y):
         jac = jax.vmap(g, in_axes=1, out_axes=1)(jnp.eye(n, dtype=y.dtype))

@@ -2,7 +2,7 @@
 
 ``run_sweep(setup, "speed", [400, 500, …])`` runs the steady state for each value of one
 parameter, the others held at ``setup``. Float parameters run as one vmapped batch (one
-compilation, one solve for all values, with the RK4 step count of the most demanding value);
+compilation, one solve for all values, with the step count of the most demanding value);
 ``modes`` (the number of modes kept, a size) runs value by value.
 
 Default studies (:data:`STUDIES`): modal truncation 1…8, speed 400…1200 r/min in steps of
@@ -21,7 +21,7 @@ import numpy as np
 from .config import check_value
 from .errors import InputError
 from .parameters import PARAMETERS, Setup, apply
-from .simulate import _simulate, default_steps, summary
+from .simulate import _simulate, resolve_method, summary
 
 STUDIES: dict[str, list[float]] = {
     "modes": [1, 2, 3, 4, 5, 6, 7, 8],
@@ -48,7 +48,7 @@ TABLE_COLUMNS = [
 @dataclasses.dataclass
 class SweepResult:
     """Rows (one summary per value) and the runs' time series, in the order of ``values``;
-    ``steps``: the RK4 steps per cycle of a vmapped batch (the most demanding value's)."""
+    ``steps``: the steps per cycle of a vmapped batch (the most demanding value's)."""
 
     parameter: str
     unit: str
@@ -64,12 +64,12 @@ def _label(parameter: str) -> tuple[str, str]:
     return parameter, PARAMETERS[parameter].unit
 
 
-def run_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4") -> SweepResult:
+def run_sweep(setup: Setup, parameter: str, values, *, method: str | None = None) -> SweepResult:
     """Steady states of ``setup`` with ``parameter`` set to each of ``values`` (users' units)."""
     return prepare_sweep(setup, parameter, values, method=method)()
 
 
-def prepare_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4"):
+def prepare_sweep(setup: Setup, parameter: str, values, *, method: str | None = None):
     """Validate a sweep (raising :class:`InputError` for bad values) and return a function
     that runs it. Splitting the two lets the command line report bad input before it starts."""
     if parameter != "modes" and parameter not in PARAMETERS:
@@ -89,10 +89,9 @@ def prepare_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4"):
             runs.append(dataclasses.replace(setup, machine=setup.machine.replace(n_modes=k)))
 
         def run_modes():
-            sims = [_simulate(s.machine, s.operating, None, method=method,
-                              steps=default_steps(s.machine, s.operating) if method == "rk4"
-                              else None, n_out=3001, rtol=1e-8, atol=1e-12, tolerance=1e-6,
-                              forward_mode=False) for s in runs]
+            sims = [_simulate(s.machine, s.operating, None,
+                              **_method_kw(*resolve_method(s.machine, s.operating, method)))
+                    for s in runs]
             return SweepResult(name, unit, values, [summary(r) for r in sims],
                                [r.series for r in sims])
 
@@ -105,12 +104,14 @@ def prepare_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4"):
             setups.append(apply(setup, {parameter: v}))
         except ValueError as err:
             raise InputError(str(err)) from None
-    steps = max(default_steps(s.machine, s.operating) for s in setups) if method == "rk4" else None
+    # one static step count for the batch: the most demanding value's
+    resolved = [resolve_method(s.machine, s.operating, method) for s in setups]
+    kind = resolved[0][0]
+    steps = None if kind == "adaptive" else max(n for _, n in resolved)
 
     def one(value):
         s = apply(setup, {parameter: value})
-        return _simulate(s.machine, s.operating, None, method=method, steps=steps, n_out=3001,
-                         rtol=1e-8, atol=1e-12, tolerance=1e-6, forward_mode=False)
+        return _simulate(s.machine, s.operating, None, **_method_kw(kind, steps))
 
     def run_batch():
         batch = eqx.filter_jit(jax.vmap(one))(jnp.asarray(si))
@@ -119,6 +120,11 @@ def prepare_sweep(setup: Setup, parameter: str, values, *, method: str = "rk4"):
                            [r.series for r in runs], steps)
 
     return run_batch
+
+
+def _method_kw(method: str, steps: int | None) -> dict:
+    return {"method": method, "steps": steps, "n_out": 3001, "rtol": 1e-8, "atol": 1e-12,
+            "tolerance": 1e-6, "forward_mode": False}
 
 
 def markdown_table(result: SweepResult) -> str:

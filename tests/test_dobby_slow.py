@@ -84,7 +84,7 @@ def test_differentiable_in_operating_and_design_parameters():
 
     def metrics(x):
         s = apply(Setup(), {n: x[i] * PARAMETERS[n].scale for i, n in enumerate(names)})
-        run = simulate(s.machine, s.operating, steps=6100)
+        run = simulate(s.machine, s.operating)
         return jnp.stack([run.metrics["deviation_pp_smooth"], run.metrics["deviation_rms"]])
 
     f = jax.jit(metrics)

@@ -59,6 +59,31 @@ def _lagrange(x):
                      for i in range(3)])
 
 
+def dense_weights(theta) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of the collocation polynomial inside a step, at fractions θ ∈ [0, 1] of it.
+
+    Within a step the collocation solution is the cubic whose acceleration is the quadratic
+    interpolant Σᵢ ℓᵢ(θ) Aᵢ of the stage accelerations (ℓᵢ the Lagrange basis on the nodes):
+
+        v(t_n + θh) = v_n + h Σᵢ W1ᵢ(θ) Aᵢ,   W1ᵢ(θ) = ∫₀^θ ℓᵢ(s) ds,
+        q(t_n + θh) = q_n + θh v_n + h² Σₖ W2ₖ(θ) Aₖ,   W2ₖ(θ) = Σᵢ W1ᵢ(θ) aᵢₖ
+
+    (q̇ of the polynomial interpolates the stage velocities Vᵢ; Hairer, Nørsett & Wanner,
+    *Solving ODEs I*, §II.7, eq. 7.17). At θ = cⱼ they are the rows of a and a², at θ = 1 the
+    weights b and bᵀa of :func:`advance`.
+
+    Returns:
+        (W1, W2), each of shape (len(θ), 3).
+    """
+    theta = np.atleast_1d(np.asarray(theta, dtype=float))
+    w1 = np.zeros((theta.size, 3))
+    for i in range(3):
+        others = [NODES[m] for m in range(3) if m != i]
+        basis = np.poly1d(others, r=True) / np.prod([NODES[i] - c for c in others])
+        w1[:, i] = np.polyint(basis)(theta)
+    return w1, w1 @ MATRIX
+
+
 EXTRAPOLATE = np.stack([_lagrange(1.0 + c) for c in NODES])
 """Predictor: the quadratic through the previous step's Aᵢ, evaluated at this step's nodes."""
 

@@ -103,7 +103,11 @@ def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
     One matrix at a time never splits. It is a small part of a sample's cost; the cycle passes,
     which are all of the rest, stay vectorised over the batch.
     """
-    model = build_model(setup.machine, setup.operating)
+    return cycle_of(build_model(setup.machine, setup.operating), steps)
+
+
+def cycle_of(model: DobbyModel, steps: int = DEFAULT_STEPS) -> Cycle:
+    """:class:`Cycle` of an assembled (two-way coupled) ``model`` on ``steps`` steps per cycle."""
     arm, ds = arm_terms(model), downstream(model)
     tables = tables_at(arm, ds, rigid_arm(model, node_phases(steps)), model.period)
     return Cycle(arm, ds, tables, static_state(model, arm, ds), jnp.asarray(model.period))

@@ -16,7 +16,10 @@ method of :mod:`jaxdobby.batch.collocation` on the tables of :mod:`jaxdobby.batc
 4. optionally records the heald frame's displacement deviation, velocity deviation and
    acceleration at the three nodes and keeps running maxima and minima, each local extremum of
    the sampled series refined by the parabola through it and its two neighbours (the nodes are
-   0.11…0.39 h apart), wrapping around the periodic cycle. No time series is stored.
+   0.11…0.39 h apart), wrapping around the periodic cycle. No time series is stored;
+5. optionally (``record``) returns each step's start state and converged stage accelerations,
+   from which :func:`jaxdobby.batch.collocation.dense_weights` gives the solution at any time
+   (the time series of :func:`jaxdobby.simulate.simulate`).
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ class PassResult(NamedTuple):
         tangents: the tangents after one cycle, (2k, m) (m = 0 without tangents).
         maxima, minima: extremes of :data:`SIGNALS` over the cycle, each (3,) [m, m/s, m/s²].
         reachable: the chain closed at every node.
+        trajectory: with ``record``, (q_n, q̇_n, A) at the start of every step, shapes (N, k),
+            (N, k), (N, 3, k) (A: the converged stage accelerations); else None.
     """
 
     end: Array
@@ -50,6 +55,7 @@ class PassResult(NamedTuple):
     maxima: Array
     minima: Array
     reachable: Array
+    trajectory: tuple[Array, Array, Array] | None = None
 
 
 def _residuals(arm: ArmTerms, ds: Downstream, st: StageTables, pos, vel, acc):
@@ -97,7 +103,7 @@ def _parabola_peaks(t, y):
 
 def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: Array, *,
                tangents: Array | None = None, full_jacobian: bool = False,
-               outputs: bool = False) -> PassResult:
+               outputs: bool = False, record: bool = False) -> PassResult:
     """Integrate one cycle from ``x0`` (see the module docstring).
 
     Args:
@@ -108,6 +114,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         tangents: (2k, m) tangent vectors to carry, or None.
         full_jacobian: include the chain's stiffness and damping in the Newton matrix.
         outputs: record the extremes of :data:`SIGNALS`.
+        record: return the trajectory (see :class:`PassResult`).
     """
     k = x0.shape[0] // 2
     n_steps = tables.height.shape[0]
@@ -158,7 +165,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
             head = jnp.where(index == 0, values[:, :2], head)
             ext = (t_seq[-2:], y_seq[:, -2:], head, jnp.fmax(hi, new_hi), jnp.fmin(lo, new_lo),
                    ok & jnp.all(reach))
-        return (qn, vn, acc, tan, ext), None
+        return (qn, vn, acc, tan, ext), ((q, v, acc) if record else None)
 
     w1, w2 = jnp.asarray(gl.WEIGHTS), jnp.asarray(gl.WEIGHTS2)
     # starting predictor: q̈ from the equations at the initial state and the first node
@@ -173,8 +180,8 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         nan2 = jnp.full((3, 2), jnp.nan)
         ext0 = (jnp.full(2, jnp.nan), nan2, nan2, jnp.full(3, -jnp.inf), jnp.full(3, jnp.inf),
                 jnp.array(True))
-    (q, v, _, tan, ext), _ = jax.lax.scan(step, (q0, v0, prev, tan0, ext0),
-                                          (jnp.arange(n_steps), tables))
+    (q, v, _, tan, ext), trajectory = jax.lax.scan(step, (q0, v0, prev, tan0, ext0),
+                                                   (jnp.arange(n_steps), tables))
     if outputs:
         hist_t, hist_y, head, hi, lo, ok = ext
         # the cycle is periodic: refine the extrema at the seam too
@@ -185,4 +192,4 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
     else:
         maxima = minima = jnp.full(3, jnp.nan)
         ok = jnp.array(True)
-    return PassResult(jnp.concatenate([q, v]), tan, maxima, minima, ok)
+    return PassResult(jnp.concatenate([q, v]), tan, maxima, minima, ok, trajectory)

@@ -28,7 +28,7 @@ Everything can be given by flags or in a problem file (``--problem FILE.toml``; 
     penalty = 10.0
     tolerance = 1e-4
     gradient = "auto"             # auto | forward | reverse
-    rk4_steps = 6800              # optional; default from the highest frequency
+    cycle_steps = 432             # optional; collocation steps per cycle
     basis_updates = 2             # re-solves on the optimum's own modes (0: fixed basis)
 
 The starting machine is the default one, or ``--config FILE.toml`` (the ``simulate`` format).
@@ -52,7 +52,7 @@ PROBLEM_KEYS = {
                   "heald_frame_mass_kg", "blade_inertia_kg_m2"),
     "constraints": ("mass_budget_kg", "frequency_floor_hz", "pitch_mm", "clearance_mm"),
     "optimizer": ("name", "steps", "learning_rate", "inner_steps", "penalty", "tolerance",
-                  "gradient", "rk4_steps", "basis_updates"),
+                  "gradient", "cycle_steps", "basis_updates"),
 }
 """Valid tables and keys of a problem file."""
 
@@ -93,7 +93,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     o.add_argument("--tolerance", type=float, metavar="TOL",
                    help="projected-gradient tolerance (default 1e-4)")
     o.add_argument("--gradient", choices=["auto", "forward", "reverse"], help="default auto")
-    o.add_argument("--rk4-steps", type=int, metavar="N", help="RK4 steps per cycle")
+    o.add_argument("--cycle-steps", type=int, metavar="N",
+                   help="collocation steps per cycle (default 432)")
     o.add_argument("--basis-updates", type=int, metavar="K",
                    help="after converging, rebuild the reduction basis from the optimum's own "
                         "modes and optimise again, up to K times (default 2; 0 keeps the "
@@ -239,9 +240,9 @@ def build_study(ns: argparse.Namespace):
     if gradient not in ("auto", "forward", "reverse"):
         raise InputError(f"[optimizer] gradient = {gradient!r} is not valid: use auto, forward "
                          "or reverse")
-    rk4 = pick(ns.rk4_steps, opt, "rk4_steps", None)
-    if rk4 is not None:
-        rk4 = _int(rk4, "--rk4-steps", 100, 10_000_000)
+    cycle_steps = pick(ns.cycle_steps, opt, "cycle_steps", None)
+    if cycle_steps is not None:
+        cycle_steps = _int(cycle_steps, "--cycle-steps", 72, 100_000)
     updates = _int(pick(ns.basis_updates, opt, "basis_updates", 2), "--basis-updates", 0, 100)
 
     sim_ns = argparse.Namespace(config=ns.config, speed=None, warp_force=ns.warp_force,
@@ -255,7 +256,7 @@ def build_study(ns: argparse.Namespace):
                           acceleration_weight=weight)
     return Study(space=space, objective=objective,
                  limits=Constraints(mass_budget=mass_budget, frequency_floor=floor),
-                 settings=settings, gradient=gradient, steps=rk4, basis_updates=updates)
+                 settings=settings, gradient=gradient, steps=cycle_steps, basis_updates=updates)
 
 
 def _check_start(space, jnp) -> None:

@@ -2,8 +2,9 @@
 
 For normalised design variables u (:class:`~jaxdobby.optimize.design.DesignSpace`) the
 mechanism's periodic steady state is solved at every speed of the study as one ``vmap``-ed batch
-(fixed-step RK4 with a common, static number of steps; the arm reduced on the space's fixed
-basis, so no eigen-decomposition is differentiated), and reduced to
+(the collocation path of :func:`jaxdobby.simulate.simulate`, 432 steps per cycle whatever the
+speed; the arm reduced on the space's fixed basis, so no eigen-decomposition is
+differentiated), and reduced to
 
     J(u) = A_s [ m_s(u) / m_s⁰ + w · a_s(u) / a_s⁰ ]
 
@@ -15,21 +16,21 @@ A_s the aggregate over speeds: ``mean``, or ``worst`` as a log-sum-exp soft maxi
 :data:`WORST_SHARPNESS`, within log(n_speeds)/β above the true maximum). Reports give the true
 peak-to-peak values.
 
-Gradients are exact derivatives of J through the reduction, the kinematics, the RK4 steps and
-the periodic state (implicit-function theorem at the shooting root). ``forward`` mode
+Gradients are exact derivatives of J through the reduction, the kinematics, the collocation
+steps and the periodic state (implicit-function theorem at the shooting root). ``forward`` mode
 (``jax.jacfwd``) carries one tangent per variable through every step; ``reverse`` mode
 (``jax.value_and_grad``) replays the steps backwards once whatever the number of variables, and
-stores the step residuals (a few hundred floats per step: megabytes). Measured on the default
-machine (2 CPU cores): one forward solve 1.8 s, its reverse gradient 5.5× that for any number of
-variables, forward mode about 1 + 1.6 per variable ×; so ``auto`` picks forward for one or two
-variables and reverse beyond (:data:`FORWARD_MAX_VARIABLES`).
+stores the step residuals (a few hundred floats per step: megabytes). Both first build the exact
+monodromy matrix at the periodic state (2k forward-mode tangents through one cycle, the
+implicit-function derivative), a cost shared by all variables; forward mode then adds one tangent
+per variable, reverse mode one backward replay. So ``auto`` picks forward for one or two
+variables and reverse beyond (:data:`FORWARD_MAX_VARIABLES`; timings in ``benchmarks/``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
 
 import equinox as eqx
 import jax
@@ -38,8 +39,7 @@ import numpy as np
 from jax import Array
 from jax.scipy.special import logsumexp
 
-from ..dobby import build_model
-from ..fixed_step import steps_per_cycle
+from ..batch import DEFAULT_STEPS
 from ..metrics import rms, smooth_peak_to_peak
 from ..simulate import _simulate
 from .design import DesignSpace
@@ -55,8 +55,6 @@ SHARPNESS = 50.0
 surrogate lies a few per cent below the true peak-to-peak (measured 3 % on the default
 machine; β = 20 of :mod:`jaxdobby.metrics` gives 10 %), close enough that its minimiser is the
 true metric's while it stays smooth."""
-STEP_MARGIN = 1.1
-"""RK4 step chosen for 1.1 × the highest reduced frequency found over the design box."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,14 +83,15 @@ def cycle_values(space: DesignSpace, u: Array, speed, steps: int) -> dict[str, A
     """
     setup = space.setup(u)
     operating = dataclasses.replace(setup.operating, speed=speed)
-    run = _simulate(setup.machine, operating, space.basis, method="rk4", steps=steps, n_out=0,
-                    rtol=0.0, atol=0.0, tolerance=1e-9, forward_mode=False)
+    run = _simulate(setup.machine, operating, space.basis, method="collocation", steps=steps,
+                    n_out=0, rtol=0.0, atol=0.0, tolerance=1e-9, forward_mode=False)
     s = run.series
     dev, acc = s.deviation, s.acceleration_flexible
-    return {"deviation": smooth_peak_to_peak(dev, SHARPNESS), "deviation_rms": rms(dev),
-                "acceleration": smooth_peak_to_peak(acc, SHARPNESS),
-                "deviation_pp": jnp.max(dev) - jnp.min(dev), "acceleration_pp": jnp.max(acc) - jnp.min(acc),
-                "converged": run.converged.astype(float), "time": s.t, "deviation_series": dev}
+    return {"deviation": smooth_peak_to_peak(dev, SHARPNESS), "deviation_rms": rms(dev[:-1]),
+            "acceleration": smooth_peak_to_peak(acc, SHARPNESS),
+            "deviation_pp": run.metrics["deviation_pp"],
+            "acceleration_pp": run.metrics["acceleration_amp"],
+            "converged": run.converged.astype(float), "time": s.t, "deviation_series": dev}
 
 
 def batch_values(space: DesignSpace, u: Array, speeds: Array, steps: int) -> dict[str, Array]:
@@ -109,22 +108,6 @@ def combine(objective: Objective, values: dict[str, Array], reference: dict[str,
     if objective.aggregate == "mean" or per_speed.shape[0] == 1:
         return jnp.mean(per_speed)
     return logsumexp(WORST_SHARPNESS * per_speed) / WORST_SHARPNESS
-
-
-def choose_steps(space: DesignSpace, speeds: Sequence[float]) -> int:
-    """A static RK4 step count valid over the whole design box and every speed.
-
-    The highest reduced frequency is taken over the starting design and the box's corners of
-    all-lower and all-upper variables (frequencies grow with the depth), × :data:`STEP_MARGIN`,
-    for the longest period (the lowest speed).
-    """
-    build = eqx.filter_jit(lambda su: build_model(su.machine, su.operating, space.basis))
-    top = 0.0
-    for u in (space.initial, jnp.zeros(space.size), jnp.ones(space.size)):
-        model = build(space.setup(u))
-        top = max(top, float(jnp.max(model.body.frequencies_hz)))
-    period = 4.0 * math.pi / min(speeds)  # one heald-frame cycle = two main-shaft turns
-    return steps_per_cycle(STEP_MARGIN * top, period)
 
 
 def gradient_mode(mode: str, n_variables: int) -> str:
@@ -171,7 +154,8 @@ class Evaluator:
     Args:
         space: the design space.
         objective: the objective settings.
-        steps: RK4 steps per cycle (default :func:`choose_steps`).
+        steps: collocation steps per cycle (default 432,
+            :data:`jaxdobby.batch.DEFAULT_STEPS`).
         mode: gradient mode (``auto``, ``forward``, ``reverse``).
     """
 
@@ -183,7 +167,7 @@ class Evaluator:
             raise ValueError(f"aggregate must be one of {AGGREGATES}")
         self.space, self.objective = space, objective
         self.speeds = jnp.asarray(objective.speeds, dtype=float)
-        self.steps = choose_steps(space, objective.speeds) if steps is None else int(steps)
+        self.steps = DEFAULT_STEPS if steps is None else int(steps)
         self.mode = gradient_mode(mode, space.size)
         # The compiled functions take the objective as a static (hashed) argument; the speeds
         # travel as the traced array above, so a study at another speed reuses the compilation.

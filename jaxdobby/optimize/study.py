@@ -125,7 +125,7 @@ def run_study(study: Study, progress: Callable[[str], None] | None = None) -> St
                                                    speed=study.objective.speeds[0]))
     toml = (f"# jaxdobby optimize: optimised design; the objective's speeds were "
             f"{', '.join(f'{s:g}' for s in speeds_rpm)} r/min (run another with --speed)\n"
-            + to_toml(setup_out, RunOptions(method="rk4", steps=evaluator.steps)))
+            + to_toml(setup_out, RunOptions(method="collocation", steps=evaluator.steps)))
     profiles = {"start": _profile(space.setup(space.initial)), "optimised": _profile(final_setup)}
     deviations = {f"{rpm:g} r/min": {
         f"start ({start['deviation_pp'][i] * 1e3:.3f} mm p-p)":
@@ -220,7 +220,7 @@ def _summary(study, evaluator, result: Result, start, final, fixed_basis, speeds
                          "frequency_floor_hz": limits.frequency_floor,
                          "stroke_mm": float(space.target_stroke) / MM},
         "optimizer": dataclasses.asdict(study.settings), "gradient_mode": evaluator.mode,
-        "rk4_steps": evaluator.steps,
+        "cycle_steps": evaluator.steps,
         "start": _state(space, u0, p0), "optimised": _state(space, u1, p1),
         "objective_start": float(result.history[0].objective),
         "objective_optimised": float(result.history[-1].objective),
