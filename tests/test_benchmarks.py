@@ -106,7 +106,8 @@ def test_bench_simulate_quick(tmp_path):
     assert data["cold"]["quick"]["total_s"] > 0 and data["cold"]["quick"]["converged"]
     (jax_default,) = data["jaxdobby"]
     assert jax_default["converged"] and jax_default["median_s"] > 0
-    # the RK4 fast path is accurate (documented ~1e-5 against the adaptive reference)
+    # the default (collocation) path is accurate (~1e-6 against the adaptive reference; loose
+    # bound: the quick reference is itself at smoke tolerances)
     assert jax_default["error"] < 1e-3
     assert {r["method"] for r in data["scipy"]} == {"RK45", "Radau"}
     assert {r["rhs"] for r in data["scipy"]} == {"numpy", "jitted"}

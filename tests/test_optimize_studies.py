@@ -23,23 +23,32 @@ from jaxdobby.parameters import Setup
 
 pytestmark = pytest.mark.slow
 RPM = math.pi / 30.0
-STEPS = 6800  # RK4 steps per cycle for the default arm at 800 r/min (choose_steps)
+STEPS = 432  # collocation steps per cycle (the optimiser's default, jaxdobby.batch.DEFAULT_STEPS)
+
+
+def _vertex(x, i):
+    """Vertex of the parabola through samples i − 1, i, i + 1 of a periodic series (the last
+    sample repeats the first): the refined extreme of jaxdobby.metrics.extremes at a fixed i."""
+    y = x[:-1]
+    a, b, c = y[i - 1], y[i], y[(i + 1) % y.shape[0]]
+    return b - (a - c) ** 2 / (8.0 * (a - 2.0 * b + c))
 
 
 def metric_vector(space, u, steps, peaks=None):
     """Every steady-state metric the optimiser can use, at 800 r/min (scaled to order 1).
 
-    The true peak-to-peak max − min over the cycle's samples is only piecewise smooth: its
-    derivative is that of x[i_max] − x[i_min] at the extreme samples, and a central difference
-    straddling a change of those samples is not a derivative. With ``peaks = (i_max, i_min)``
-    the peak-to-peak is taken at those fixed samples instead (the smooth piece).
+    The true peak-to-peak (refined max − min over the cycle's samples) is only piecewise
+    smooth: its derivative is that of the refined values at the extreme samples, and a central
+    difference straddling a change of those samples is not a derivative. With
+    ``peaks = (i_max, i_min)`` the peak-to-peak is taken at those fixed samples instead (the
+    smooth piece).
     """
     v = cycle_values(space, u, 800.0 * RPM, steps)
     dev = v["deviation_series"]
-    pp = v["deviation_pp"] if peaks is None else dev[peaks[0]] - dev[peaks[1]]
+    pp = v["deviation_pp"] if peaks is None else _vertex(dev, peaks[0]) - _vertex(dev, peaks[1])
     metrics = jnp.stack([1e3 * v["deviation"], 1e3 * pp, 1e4 * v["deviation_rms"],
                          v["acceleration"] / 1e3])
-    return metrics, jnp.stack([jnp.argmax(dev), jnp.argmin(dev)])
+    return metrics, jnp.stack([jnp.argmax(dev[:-1]), jnp.argmin(dev[:-1])])
 
 
 def test_gradients_match_finite_differences_for_every_design_variable():
@@ -47,7 +56,7 @@ def test_gradients_match_finite_differences_for_every_design_variable():
     base = Setup(machine=Machine.default().with_stroke(0.120))
     space = DesignSpace.create(base, ["thickness", "depth", "arc_radius", "heald_frame_mass"],
                                bounds={"arc_radius": (300.0, 600.0)})
-    steps = 12900  # valid over the depth box (choose_steps)
+    steps = STEPS
     u0 = space.initial + 0.05  # off the default point (depths 43 mm, t = 6.2 mm, ...)
     fn = lambda u: metric_vector(space, u, steps)[0]
     fwd = np.asarray(jax.jit(jax.jacfwd(fn))(u0))
@@ -86,10 +95,12 @@ def test_vmap_of_the_gradient_equals_a_loop():
     loop = np.stack([grad(space.initial, w) for w in speeds])
     # Same arithmetic batched or not: agreement to round-off.
     np.testing.assert_allclose(batched, loop, rtol=1e-10, atol=1e-14)
-    # And the batch of values the objective uses is the same vmap.
+    # And the batch of values the objective uses is the same vmap: lanes are independent, but
+    # XLA orders the sums of batched contractions differently (measured 3e-12 relative after
+    # the shooting, as the batch evaluator's 4e-14 per cycle in test_batch.py), so 1e-10.
     values = jax.jit(lambda u: batch_values(space, u, speeds, STEPS))(space.initial)
     np.testing.assert_allclose(values["deviation"],
-                               [metric(space.initial, w) for w in speeds], rtol=1e-12)
+                               [metric(space.initial, w) for w in speeds], rtol=1e-10)
 
 
 def test_deviation_against_thickness_falls_but_not_monotonically():

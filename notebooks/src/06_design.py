@@ -5,8 +5,8 @@
 # as long as neighbouring arms still clear each other. That is a design trade-off, and with one
 # ADAMS run at a time nobody explores it beyond a few hand-picked plates. jaxdobby differentiates
 # the periodic steady state of the coupled mechanism with respect to the arm's design (through
-# the finite-element model, its reduction onto a fixed Ritz basis, the kinematics and the RK4
-# cycle), so an optimiser can walk downhill on the heald-frame deviation directly.
+# the finite-element model, its reduction onto a fixed Ritz basis, the kinematics and the
+# collocation cycle), so an optimiser can walk downhill on the heald-frame deviation directly.
 #
 # Two problems, both minimising the peak-to-peak deviation of the heald frame (flexible − rigid
 # height) at 800 r/min:
