@@ -1,7 +1,7 @@
 """Cost of one design gradient relative to one forward steady-state solve.
 
 For a few design-variable sets (1 to 7 variables) and both gradient modes, times on the default
-machine at 800 r/min, on the optimiser's fixed reduction basis:
+machine at 800 r/min, on the optimiser's model (each design on its own modes):
 
 * one forward solve (J and the metrics),
 * one gradient (J and ∇J) in forward mode (``jax.jacfwd``) and in reverse mode

@@ -111,7 +111,7 @@ def arm_modes(machine: Machine) -> ModalBasis:
     return modal_basis(arm_beam(machine.arm), supports, machine.n_modes)
 
 
-def build_model(machine: Machine, operating: OperatingPoint, basis: Array | None = None
+def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str | None = None
                 ) -> DobbyModel:
     """Assemble the arm, its modes at mid-lift and the chain's reference values (jittable).
 
@@ -120,7 +120,8 @@ def build_model(machine: Machine, operating: OperatingPoint, basis: Array | None
     With ``basis`` (n_dofs, n_modes), e.g. ``arm_modes(reference).shapes``, the arm is reduced
     on that fixed basis instead of its own modes (:func:`jaxdobby.flexible_body.flexible_body`):
     no eigen-decomposition on the differentiated path; identical to the modal model when the
-    basis is the machine's own modes.
+    basis is the machine's own modes. ``basis="own"``: the own modes, differentiated as the
+    subspace they span (:func:`jaxdobby.modal.mode_subspace`; the design optimiser's choice).
     """
     chain = machine.chain
     (phi_bottom, _), (theta_bottom, theta_top) = dead_centres(chain)

@@ -46,7 +46,7 @@ from jax import Array
 
 from . import ritz
 from .beam import Beam
-from .modal import modal_basis
+from .modal import modal_basis, mode_subspace
 from .supports import Supports, static_deflection, supported_stiffness
 
 STIFFENING_CASES = ("centrifugal", "euler", "x", "y")
@@ -124,6 +124,9 @@ def flexible_body(beam: Beam, supports: Supports, n_modes: int, *,
             :func:`~jaxdobby.ritz.modal_damping` (``damping_ratio`` must be one number), and Ψ
             is held constant (``stop_gradient``) so that no eigen-decomposition is
             differentiated. Rows of constrained DOFs are set to zero.
+            ``"own"``: the beam's own first ``n_modes`` modes used the same way, with the
+            derivative of the subspace they span (:func:`jaxdobby.modal.mode_subspace`): the
+            modal model's values, and derivatives free of 1/(λᵢ − λⱼ) between kept modes.
     """
     m = beam.mass_matrix()
     k = supported_stiffness(beam, supports)
@@ -131,6 +134,15 @@ def flexible_body(beam: Beam, supports: Supports, n_modes: int, *,
     if basis is None:
         modes = modal_basis(beam, supports, n_modes)
         phi, frequencies = modes.shapes, modes.frequencies
+    elif isinstance(basis, str) and basis == "own":
+        if jnp.ndim(damping_ratio) != 0:
+            raise ValueError("basis='own' needs one damping ratio for all modes")
+        free = supports.free_dofs(beam.n_nodes)
+        sub = mode_subspace(m[np.ix_(free, free)], k[np.ix_(free, free)], n_modes)
+        phi = jnp.zeros((beam.n_dofs, n_modes), dtype=sub.dtype).at[free].set(sub)
+        mass_r, stiffness_r = phi.T @ m @ phi, phi.T @ k @ phi
+        frequencies = ritz.reduced_frequencies(mass_r, stiffness_r)
+        damping = ritz.modal_damping(mass_r, stiffness_r, jnp.asarray(damping_ratio, float))
     else:
         phi = jax.lax.stop_gradient(jnp.asarray(basis, dtype=float))
         if phi.shape != (beam.n_dofs, n_modes):

@@ -21,7 +21,10 @@ Example::
 
 from __future__ import annotations
 
+import functools
+
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
 import numpy as np
@@ -55,6 +58,43 @@ def _solve_eigen(mass: Array, stiffness: Array):
     a = jsl.solve_triangular(chol, jsl.solve_triangular(chol, stiffness, lower=True).T, lower=True)
     lam, v = jnp.linalg.eigh(0.5 * (a + a.T))
     return lam, jsl.solve_triangular(chol.T, v, lower=False)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(2,))
+def mode_subspace(mass: Array, stiffness: Array, n_modes: int) -> Array:
+    """The first ``n_modes`` M-orthonormal modes of K φ = λ M φ, shape (n, n_modes), with the
+    derivative of the *subspace* they span.
+
+    A model reduced onto the first k modes depends only on their span (any M-orthonormal basis
+    of it gives the same physics), so its derivative needs only the span's. Perturbing
+    K φᵢ = λᵢ M φᵢ gives the components of dφᵢ along the discarded modes φⱼ (j > k),
+
+        cⱼᵢ = φⱼᵀ (dK − λᵢ dM) φᵢ / (λᵢ − λⱼ),
+
+    and within the span any dφ with Φₖᵀ M dΦₖ + dΦₖᵀ M Φₖ = −Φₖᵀ dM Φₖ keeps the basis
+    M-orthonormal; the symmetric choice dΦₖ = −½ Φₖ (Φₖᵀ dM Φₖ) is taken (Nelson, AIAA J. 14,
+    1976, for the eigenvector derivative; here without its kept–kept terms). So
+    dΦₖ = −½ Φₖ (Φₖᵀ dM Φₖ) + Φᵣ C: the only divisors are the gaps λᵢ − λⱼ between a kept and
+    a discarded mode. Two kept modes (or two discarded ones) may coincide without harm, where
+    the eigenvector derivatives of ``eigh`` (1/(λᵢ − λⱼ) over every pair) are NaN; only a
+    closing gap at the truncation itself — where the reduced model is not smooth — is
+    ill-conditioned. Forward and reverse mode (the tangent is linear in dM, dK).
+    """
+    _, phi = _solve_eigen(mass, stiffness)
+    return phi[:, :n_modes]
+
+
+@mode_subspace.defjvp
+def _mode_subspace_jvp(n_modes, primals, tangents):
+    mass, stiffness = primals
+    d_mass, d_stiffness = tangents
+    lam, phi = _solve_eigen(mass, stiffness)
+    kept, rest = phi[:, :n_modes], phi[:, n_modes:]
+    lam_kept, lam_rest = lam[:n_modes], lam[n_modes:]
+    within = -0.5 * kept.T @ d_mass @ kept
+    coupling = rest.T @ (d_stiffness @ kept - (d_mass @ kept) * lam_kept[None, :])
+    across = coupling / (lam_kept[None, :] - lam_rest[:, None])
+    return kept, kept @ within + rest @ across
 
 
 @eqx.filter_jit

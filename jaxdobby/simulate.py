@@ -86,7 +86,7 @@ def default_method(machine: Machine) -> str:
 
 
 def resolve_method(machine: Machine, operating: OperatingPoint, method: str | None = None,
-                   steps: int | None = None, basis: Array | None = None
+                   steps: int | None = None, basis: Array | str | None = None
                    ) -> tuple[str, int | None]:
     """(method, steps) as :func:`simulate` runs them: the default method for the coupling, the
     default step count of the fixed-step methods; raises ``ValueError`` for a method that does
@@ -104,7 +104,8 @@ def resolve_method(machine: Machine, operating: OperatingPoint, method: str | No
     return method, steps
 
 
-def default_steps(machine: Machine, operating: OperatingPoint, basis: Array | None = None) -> int:
+def default_steps(machine: Machine, operating: OperatingPoint,
+                  basis: Array | str | None = None) -> int:
     """RK4 steps per cycle for concrete parameters (Δt = 1.5/ω_max of the arm's modes)."""
     model = eqx.filter_jit(build_model)(machine, operating, basis)
     return steps_per_cycle(float(jnp.max(model.body.frequencies_hz)), float(model.period))
@@ -113,7 +114,7 @@ def default_steps(machine: Machine, operating: OperatingPoint, basis: Array | No
 def simulate(machine: Machine | None = None, operating: OperatingPoint | None = None, *,
              method: str | None = None, steps: int | None = None, n_out: int = 3001, rtol=1e-8,
              atol=1e-12, tolerance=1e-6, forward_mode: bool = False,
-             basis: Array | None = None) -> Simulation:
+             basis: Array | str | None = None) -> Simulation:
     """Steady-state heald-frame cycle of ``machine`` at ``operating`` (defaults: DESIGN §6).
 
     Args:
@@ -130,7 +131,8 @@ def simulate(machine: Machine | None = None, operating: OperatingPoint | None = 
             only smooth to about its rtol, so do not ask for much less than 100·rtol.
         forward_mode: make the adaptive saved cycle differentiable in forward mode
             (``jax.jacfwd``) instead of reverse mode.
-        basis: optional fixed reduction basis of the arm, shape (n_dofs, n_modes) (see
+        basis: optional fixed reduction basis of the arm, shape (n_dofs, n_modes), or
+            ``"own"`` (the own modes with the derivative of their subspace; see
             :func:`jaxdobby.dobby.build_model`); default: the arm's own modes.
     """
     require_x64()

@@ -2,9 +2,12 @@
 
 * :mod:`~jaxdobby.optimize.design` — design variables ↔ Setup, bounds, constraints;
 * :mod:`~jaxdobby.optimize.objective` — the steady-state objective over a batch of speeds and
-  its exact gradient (forward or reverse mode), on a fixed reduction basis;
-* :mod:`~jaxdobby.optimize.loop` — projected Adam / L-BFGS (optax) with an augmented
-  Lagrangian for the constraints;
+  its exact gradient (forward or reverse mode), each design on its own modes (differentiated
+  as the subspace they span) or on a fixed reduction basis;
+* :mod:`~jaxdobby.optimize.feasible` — the box of the bounds cut by the mass budget, held
+  exactly by projection;
+* :mod:`~jaxdobby.optimize.loop` — projected Adam / L-BFGS (optax), with an augmented
+  Lagrangian for the nonlinear constraint (the first coupled frequency);
 * :mod:`~jaxdobby.optimize.output` — history, optimised design (TOML), figures;
 * :mod:`~jaxdobby.optimize.command` — the command line.
 

@@ -29,7 +29,6 @@ Everything can be given by flags or in a problem file (``--problem FILE.toml``; 
     tolerance = 1e-4
     gradient = "auto"             # auto | forward | reverse
     cycle_steps = 432             # optional; collocation steps per cycle
-    basis_updates = 2             # re-solves on the optimum's own modes (0: fixed basis)
 
 The starting machine is the default one, or ``--config FILE.toml`` (the ``simulate`` format).
 Bad input ends with one line naming the field and its valid range (exit status 2).
@@ -52,7 +51,7 @@ PROBLEM_KEYS = {
                   "heald_frame_mass_kg", "blade_inertia_kg_m2"),
     "constraints": ("mass_budget_kg", "frequency_floor_hz", "pitch_mm", "clearance_mm"),
     "optimizer": ("name", "steps", "learning_rate", "inner_steps", "penalty", "tolerance",
-                  "gradient", "cycle_steps", "basis_updates"),
+                  "gradient", "cycle_steps"),
 }
 """Valid tables and keys of a problem file."""
 
@@ -95,10 +94,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     o.add_argument("--gradient", choices=["auto", "forward", "reverse"], help="default auto")
     o.add_argument("--cycle-steps", type=int, metavar="N",
                    help="collocation steps per cycle (default 432)")
-    o.add_argument("--basis-updates", type=int, metavar="K",
-                   help="after converging, rebuild the reduction basis from the optimum's own "
-                        "modes and optimise again, up to K times (default 2; 0 keeps the "
-                        "starting design's modes throughout)")
     m = p.add_argument_group("machine")
     m.add_argument("--config", metavar="FILE.toml", help="starting machine (simulate format)")
     m.add_argument("--warp-force", type=float, metavar="N", help="peak warp force [N]")
@@ -243,7 +238,6 @@ def build_study(ns: argparse.Namespace):
     cycle_steps = pick(ns.cycle_steps, opt, "cycle_steps", None)
     if cycle_steps is not None:
         cycle_steps = _int(cycle_steps, "--cycle-steps", 72, 100_000)
-    updates = _int(pick(ns.basis_updates, opt, "basis_updates", 2), "--basis-updates", 0, 100)
 
     sim_ns = argparse.Namespace(config=ns.config, speed=None, warp_force=ns.warp_force,
                                 stroke=ns.stroke, thickness=ns.thickness, modes=None,
@@ -256,7 +250,7 @@ def build_study(ns: argparse.Namespace):
                           acceleration_weight=weight)
     return Study(space=space, objective=objective,
                  limits=Constraints(mass_budget=mass_budget, frequency_floor=floor),
-                 settings=settings, gradient=gradient, steps=cycle_steps, basis_updates=updates)
+                 settings=settings, gradient=gradient, steps=cycle_steps)
 
 
 def _check_start(space, jnp) -> None:

@@ -40,7 +40,7 @@ import numpy as np
 from jax import Array
 
 from ..arm import ArmDesign
-from ..dobby import arm_modes, build_model
+from ..dobby import build_model
 from ..errors import InputError
 from ..outputs import coupled_frequencies
 from ..parameters import Setup
@@ -106,7 +106,10 @@ class DesignSpace(eqx.Module):
         variables: variable names, in order (static); ``depth`` covers ``n_depth`` entries.
         lower, upper: bounds of each entry [SI], shape (n,).
         initial: the base design's u, shape (n,) (clipped into the box).
-        basis: fixed reduction basis of the arm (modes of ``base``), held constant.
+        basis: the arm's reduction: ``"own"`` (default) — every design on its own first modes,
+            differentiated as a subspace (:func:`jaxdobby.modal.mode_subspace`), the model
+            ``jaxdobby simulate`` runs — or a fixed basis (n_dofs, n_modes) held constant (a
+            Ritz reduction, e.g. ``arm_modes(base.machine).shapes``).
         target_stroke: rigid stroke kept when the arc changes [m].
         arc_length: arc length of the arm's arc, kept when its radius changes [m].
     """
@@ -116,7 +119,7 @@ class DesignSpace(eqx.Module):
     lower: Array
     upper: Array
     initial: Array
-    basis: Array
+    basis: Array | str
     target_stroke: Array
     arc_length: Array
 
@@ -124,7 +127,8 @@ class DesignSpace(eqx.Module):
     def create(cls, base: Setup, variables: Sequence[str],
                bounds: Mapping[str, tuple[float, float]] | None = None,
                depth_positions_mm: Sequence[float] | None = None,
-               pitch_mm: float = PITCH_MM, clearance_mm: float = CLEARANCE_MM) -> DesignSpace:
+               pitch_mm: float = PITCH_MM, clearance_mm: float = CLEARANCE_MM,
+               basis: Array | str = "own") -> DesignSpace:
         """A design space around ``base`` (concrete values; raises InputError on bad input).
 
         Args:
@@ -136,6 +140,7 @@ class DesignSpace(eqx.Module):
                 ``base`` if it has several, else :func:`default_depth_positions`); the base
                 depth profile is interpolated onto them.
             pitch_mm, clearance_mm: t ≤ pitch − clearance.
+            basis: the arm's reduction (see the class attributes).
         """
         variables = tuple(variables)
         if not variables:
@@ -169,7 +174,7 @@ class DesignSpace(eqx.Module):
             upper += [hi * scale] * n
         lower, upper = jnp.asarray(lower), jnp.asarray(upper)
         space = cls(base=base, variables=variables, lower=lower, upper=upper,
-                    initial=jnp.zeros_like(lower), basis=arm_modes(base.machine).shapes,
+                    initial=jnp.zeros_like(lower), basis=basis,
                     target_stroke=base.machine.stroke(),
                     arc_length=arm.arc_radius * arm.arc_angle)
         if "arc_radius" in variables:
@@ -277,7 +282,7 @@ def arm_mass(setup: Setup) -> Array:
     return setup.machine.arm.mass()
 
 
-def first_frequency(setup: Setup, basis: Array | None = None) -> Array:
+def first_frequency(setup: Setup, basis: Array | str | None = None) -> Array:
     """First coupled natural frequency of the mechanism at mid-stroke [Hz] (speed-free).
 
     Eigenvalues only (``eigvalsh``): their derivatives have no 1/(λᵢ − λⱼ) terms.
@@ -346,8 +351,8 @@ def check_mass_budget(space: DesignSpace, limits: Constraints) -> None:
 @eqx.filter_jit
 def properties(space: DesignSpace, u: Array, own_modes: bool = False) -> dict[str, Array]:
     """Arm mass [kg], first coupled frequency [Hz] and rigid stroke [m] of the design ``u``
-    (frequency on the space's fixed basis, or with ``own_modes`` on the design's own modes)."""
+    (frequency on the space's basis, or with ``own_modes`` on the design's own modes)."""
     setup = space.setup(u)
-    basis = None if own_modes else space.basis
+    basis = "own" if own_modes else space.basis
     return {"mass": arm_mass(setup), "frequency": first_frequency(setup, basis),
                 "stroke": setup.machine.stroke()}

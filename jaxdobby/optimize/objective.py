@@ -3,8 +3,8 @@
 For normalised design variables u (:class:`~jaxdobby.optimize.design.DesignSpace`) the
 mechanism's periodic steady state is solved at every speed of the study as one ``vmap``-ed batch
 (the collocation path of :func:`jaxdobby.simulate.simulate`, 432 steps per cycle whatever the
-speed; the arm reduced on the space's fixed basis, so no eigen-decomposition is
-differentiated), and reduced to
+speed; the arm reduced on its own modes, differentiated as the subspace they span, or on a
+fixed basis: :class:`~jaxdobby.optimize.design.DesignSpace`), and reduced to
 
     J(u) = A_s [ m_s(u) / m_s⁰ + w · a_s(u) / a_s⁰ ]
 
@@ -175,7 +175,8 @@ class Evaluator:
         start = _values(space, space.initial, self.speeds, self.steps)
         self.reference = {k: start[k] for k in ("deviation", "deviation_rms", "acceleration")}
 
-    def value(self, u: Array, basis: Array | None = None) -> tuple[float, dict[str, np.ndarray]]:
+    def value(self, u: Array, basis: Array | str | None = None
+              ) -> tuple[float, dict[str, np.ndarray]]:
         """J(u) and the per-speed values (no gradient), optionally on another reduction basis
         (e.g. the modes of the design ``u`` itself: then the values are those of the modal
         model that ``jaxdobby simulate`` runs, up to round-off)."""

@@ -7,10 +7,10 @@ Files in the output directory, each written atomically:
   frequency, constraint values and multipliers, and per speed the true and smooth
   peak-to-peak deviation and the acceleration amplitude;
 * ``result.json`` — the problem, the starting and optimised designs, their metrics at every
-  speed on the modal model that ``jaxdobby simulate`` runs (and on the fixed reduction basis the
-  optimiser used), the improvement, the optimality conditions, timings;
-* ``design.toml`` — the optimised machine, which ``jaxdobby simulate --config`` reads (the RK4
-  step count of the study included, so the metric is reproduced exactly);
+  speed on the modal model that ``jaxdobby simulate`` runs (the optimiser's own model), the
+  improvement, the optimality conditions, timings;
+* ``design.toml`` — the optimised machine, which ``jaxdobby simulate --config`` reads (the
+  study's integrator and step count included, so the metric is reproduced exactly);
 * ``history.png``, ``depth_profile.png``, ``deviation.png`` — objective and constraints over the
   iterations, the arm's depth along its length before/after, the heald-frame deviation over the
   cycle before/after.
