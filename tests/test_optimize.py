@@ -276,3 +276,31 @@ steps = 3
     assert float(study.space.upper[0]) == pytest.approx(0.0075)
     assert study.limits.mass_budget == 0.5 and study.limits.frequency_floor is None
     assert study.settings.optimizer == "adam" and study.settings.steps == 4  # the flag wins
+
+
+def test_a_batched_scan_of_starts_picks_the_best_feasible_candidate():
+    # J = |u − (0.9, 0.8)|² over [0,1]² with u0 + u1 ≤ 1 held by projection and a nonlinear
+    # constraint u1 ≤ 0.3 (row 1): the best projected candidate meeting u1 ≤ 0.3 is the one
+    # nearest the constrained optimum (0.7, 0.3) among the Sobol points (checked by brute force).
+    from jaxdobby.optimize.study import best_start, start_candidates
+
+    class Fake:
+        def values_many(self, us):
+            return np.sum((np.asarray(us) - np.array([0.9, 0.8])) ** 2, axis=1)
+
+    def constraints(u):
+        return (np.array([u[0] + u[1] - 1.0, u[1] - 0.3]),
+                np.array([[1.0, 1.0], [0.0, 1.0]]))
+
+    u0 = np.array([0.1, 0.1])
+    best, j = best_start(Fake(), constraints, u0, 32, linear=(0,), seed=3)
+    candidates = [FeasibleSet(a=np.ones(2), b=1.0).project(c)
+                  for c in start_candidates(u0, 32, seed=3)]
+    allowed = [c for c in candidates if c[1] <= 0.3]
+    expected = min(allowed, key=lambda c: float(np.sum((c - np.array([0.9, 0.8])) ** 2)))
+    np.testing.assert_array_equal(best, expected)
+    assert j == pytest.approx(float(np.sum((expected - np.array([0.9, 0.8])) ** 2)))
+    assert best.sum() <= 1.0 + 1e-12 and best[1] <= 0.3
+    # one variable: the given design and a uniform grid over the range
+    np.testing.assert_allclose(start_candidates(np.array([0.4]), 5)[:, 0],
+                               [0.4, 0.0, 1 / 3, 2 / 3, 1.0])

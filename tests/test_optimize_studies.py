@@ -117,15 +117,23 @@ def test_deviation_against_thickness_falls_but_not_monotonically():
     assert abs(f1[6.2] / (800.0 / 120.0) - 16.2) < 0.1  # 107.95 Hz = 16.19 × 6.67 Hz
 
 
-def thickness_study(limits, steps=12):
+def thickness_study(limits, steps=12, starts=1):
     space = DesignSpace.create(Setup(), ["thickness"])
     return run_study(Study(space=space, objective=Objective(), limits=limits,
                            settings=Settings(optimizer="lbfgs", steps=steps, tolerance=1e-6),
-                           steps=STEPS))
+                           steps=STEPS, starts=starts))
 
 
 def test_thickness_alone_goes_to_the_upper_bound():
-    out = thickness_study(Constraints())
+    # From 6 mm the gradient stops in a local minimum (7.15 mm, deviation 2.344 mm): a
+    # resonance of the frame-on-arm mode with a harmonic of the pick rate raises the deviation
+    # around 7.35 mm (see the test above). A batched scan of 10 starting thicknesses (the given
+    # 6 mm, then 6, 6.25, …, 8 mm; one vmapped solve) picks the basin of the bound, and the
+    # optimiser ends exactly on it with the gradient pointing outwards.
+    local = thickness_study(Constraints()).summary
+    assert 7.0 < local["optimised"]["design"]["thickness_mm"] < 7.3
+    assert local["converged"] and local["optimality"]["projected_gradient"] < 1e-5
+    out = thickness_study(Constraints(), starts=10)
     s = out.summary
     assert s["optimised"]["design"]["thickness_mm"] == 8.0  # exactly on the bound (projection)
     assert s["optimality"]["projected_gradient"] == 0.0  # and the gradient points outwards

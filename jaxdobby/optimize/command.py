@@ -29,6 +29,7 @@ Everything can be given by flags or in a problem file (``--problem FILE.toml``; 
     tolerance = 1e-4
     gradient = "auto"             # auto | forward | reverse
     cycle_steps = 432             # optional; collocation steps per cycle
+    starts = 1                    # > 1: scan that many starting designs in one batch first
 
 The starting machine is the default one, or ``--config FILE.toml`` (the ``simulate`` format).
 Bad input ends with one line naming the field and its valid range (exit status 2).
@@ -51,7 +52,7 @@ PROBLEM_KEYS = {
                   "heald_frame_mass_kg", "blade_inertia_kg_m2"),
     "constraints": ("mass_budget_kg", "frequency_floor_hz", "pitch_mm", "clearance_mm"),
     "optimizer": ("name", "steps", "learning_rate", "inner_steps", "penalty", "tolerance",
-                  "gradient", "cycle_steps"),
+                  "gradient", "cycle_steps", "starts"),
 }
 """Valid tables and keys of a problem file."""
 
@@ -94,6 +95,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     o.add_argument("--gradient", choices=["auto", "forward", "reverse"], help="default auto")
     o.add_argument("--cycle-steps", type=int, metavar="N",
                    help="collocation steps per cycle (default 432)")
+    o.add_argument("--starts", type=int, metavar="K",
+                   help="evaluate K starting designs (the given one, then a grid or a Sobol "
+                        "sequence over the bounds) in one vmapped batch and optimise from the "
+                        "best (default 1: the given design; the objective has local minima "
+                        "between resonances)")
     m = p.add_argument_group("machine")
     m.add_argument("--config", metavar="FILE.toml", help="starting machine (simulate format)")
     m.add_argument("--warp-force", type=float, metavar="N", help="peak warp force [N]")
@@ -235,6 +241,7 @@ def build_study(ns: argparse.Namespace):
     if gradient not in ("auto", "forward", "reverse"):
         raise InputError(f"[optimizer] gradient = {gradient!r} is not valid: use auto, forward "
                          "or reverse")
+    starts = _int(pick(ns.starts, opt, "starts", 1), "--starts", 1, 4096)
     cycle_steps = pick(ns.cycle_steps, opt, "cycle_steps", None)
     if cycle_steps is not None:
         cycle_steps = _int(cycle_steps, "--cycle-steps", 72, 100_000)
@@ -250,7 +257,7 @@ def build_study(ns: argparse.Namespace):
                           acceleration_weight=weight)
     return Study(space=space, objective=objective,
                  limits=Constraints(mass_budget=mass_budget, frequency_floor=floor),
-                 settings=settings, gradient=gradient, steps=cycle_steps)
+                 settings=settings, gradient=gradient, steps=cycle_steps, starts=starts)
 
 
 def _check_start(space, jnp) -> None:

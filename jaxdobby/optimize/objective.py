@@ -124,6 +124,11 @@ def _values(space, u, speeds, steps):
     return batch_values(space, u, speeds, steps)
 
 
+@eqx.filter_jit
+def _values_many(space, us, speeds, steps):
+    return jax.vmap(lambda u: batch_values(space, u, speeds, steps))(us)
+
+
 def _objective(space, u, speeds, steps, objective, reference):
     values = batch_values(space, u, speeds, steps)
     return combine(objective, values, reference), values
@@ -184,6 +189,11 @@ class Evaluator:
         values = _values(space, jnp.asarray(u), self.speeds, self.steps)
         j = combine(self.objective, values, self.reference)
         return float(j), {k: np.asarray(v) for k, v in values.items()}
+
+    def values_many(self, us: Array) -> np.ndarray:
+        """J at every row of ``us`` (m, n), as one vmapped batch of m × speeds solves."""
+        values = _values_many(self.space, jnp.asarray(us), self.speeds, self.steps)
+        return np.asarray(jax.vmap(lambda v: combine(self.objective, v, self.reference))(values))
 
     def value_and_grad(self, u: Array) -> tuple[float, np.ndarray, dict[str, np.ndarray]]:
         """J(u), ∇J(u) (shape (n,)) and the per-speed values."""
