@@ -128,8 +128,8 @@ def test_thickness_alone_goes_to_the_upper_bound():
     # From 6 mm the gradient stops in a local minimum (7.15 mm, deviation 2.344 mm): a
     # resonance of the frame-on-arm mode with a harmonic of the pick rate raises the deviation
     # around 7.35 mm (see the test above). A batched scan of 10 starting thicknesses (the given
-    # 6 mm, then 6, 6.25, …, 8 mm; one vmapped solve) picks the basin of the bound, and the
-    # optimiser ends exactly on it with the gradient pointing outwards.
+    # 6 mm, then 4, 4.5, …, 8 mm over the default bounds; one vmapped solve) picks the basin of
+    # the bound, and the optimiser ends exactly on it with the gradient pointing outwards.
     local = thickness_study(Constraints()).summary
     assert 7.0 < local["optimised"]["design"]["thickness_mm"] < 7.3
     assert local["converged"] and local["optimality"]["projected_gradient"] < 1e-5
