@@ -46,6 +46,28 @@ def cells_from_source(text: str) -> list:
     return cells
 
 
+def without_compiler_alarms(nb) -> None:
+    """Drop XLA's "Very slow compile?" alarms (C++ log lines on stderr, not the notebook's
+    output) from the executed cells, so the committed notebook shows what it computes."""
+    for cell in nb.cells:
+        if cell.cell_type != "code":
+            continue
+        kept = []
+        for out in cell.get("outputs", []):
+            if out.get("output_type") == "stream" and out.get("name") == "stderr":
+                text = out["text"]
+                if "slow_operation_alarm" in text or "Very slow compile?" in text:
+                    lines = [ln for ln in text.splitlines() if not (
+                        "slow_operation_alarm" in ln or "Very slow compile?" in ln
+                        or ln.strip("*").strip() == "" and ln.strip())]
+                    text = "\n".join(ln for ln in lines if ln.strip()) + "\n"
+                    if not text.strip():
+                        continue
+                    out["text"] = text
+            kept.append(out)
+        cell.outputs = kept
+
+
 def build(source: Path, execute: bool = True, quick: bool = False, timeout: int = 1800) -> Path:
     nb = nbformat.v4.new_notebook()
     nb.cells = cells_from_source(source.read_text(encoding="utf-8"))
@@ -64,6 +86,7 @@ def build(source: Path, execute: bool = True, quick: bool = False, timeout: int 
         try:
             NotebookClient(nb, timeout=timeout, kernel_name="python3",
                            resources={"metadata": {"path": str(HERE)}}).execute()
+            without_compiler_alarms(nb)
         finally:
             for k, v in before.items():
                 if v is None:
