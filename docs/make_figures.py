@@ -3,12 +3,18 @@
     python docs/make_figures.py                 # all
     python docs/make_figures.py cycle sweep     # some
     python docs/make_figures.py sobol --sobol-dir notebooks/runs/sobol-restoring-1024
+    python docs/make_figures.py design --design-dirs notebooks/runs/design-thickness \
+        notebooks/runs/design-depth
 
 ``cycle``: the default machine's heald frame over one cycle, rigid and flexible, and the
 deviation; ``sweep``: the speed study (deviation and acceleration against speed); ``sobol``:
 total Sobol indices of the deviation and the acceleration as bars and pie charts, read from the
 ``indices.json`` of a finished ``jaxdobby sobol`` run (notebook 05 keeps its N = 1024 run in
-``notebooks/runs/``), or from a fresh run at ``--n`` base samples when none is given.
+``notebooks/runs/``), or from a fresh run at ``--n`` base samples when none is given;
+``design``: the arm's depth profile and the heald-frame deviation at 800 r/min of the default
+machine beside the designs of finished ``jaxdobby optimize`` runs (their ``design.toml``, re-run
+here with ``jaxdobby simulate``'s path; notebook 06 keeps its runs in ``notebooks/runs/``), and
+the README's table of their masses and deviations at 800 and 1200 r/min on stderr.
 Figures are kept small (100 dpi) because they are committed.
 """
 
@@ -110,19 +116,74 @@ def sobol(indices: dict) -> plt.Figure:
     return fig
 
 
+def design(directories: list[str]) -> plt.Figure:
+    from jaxdobby import OperatingPoint, simulate
+    from jaxdobby.config import load
+    from jaxdobby.parameters import Setup
+
+    runs = [("default arm: 6 mm plate, 40 mm deep", Setup(), None)]
+    for directory in directories:
+        setup, options = load(Path(directory) / "design.toml")
+        result = json.loads((Path(directory) / "result.json").read_text())
+        runs.append((_design_text(result["optimised"]["design"], setup), setup, options))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10.0, 3.8), layout="constrained",
+                                 width_ratios=(2, 3))
+    for (label, setup, options), style in zip(runs, ("k--", "C0-", "C3-", "C2-")):
+        arm = setup.machine.arm
+        s = np.linspace(0.0, float(arm.total_length), 200)
+        depth = np.interp(s, np.atleast_1d(arm.depth_arc_lengths), np.atleast_1d(arm.depth))
+        a1.plot(s * 1e3, depth * 1e3, style, lw=1.2, label=label)
+        kwargs = {"method": options.method, "steps": options.steps} if options else {}
+        run = simulate(setup.machine, setup.operating, **kwargs)
+        pp = 1e3 * float(run.metrics["deviation_pp"])
+        fast = simulate(setup.machine, OperatingPoint.from_users_units(
+            speed_rpm=1200.0, warp_force_n=float(setup.operating.warp_force)), **kwargs)
+        print(f"| {label} | {float(arm.mass()):.4f} kg | {pp:.3f} mm | "
+              f"{1e3 * float(fast.metrics['deviation_pp']):.3f} mm |", file=sys.stderr)
+        a2.plot(np.asarray(run.series.t) * 1e3, np.asarray(run.series.deviation) * 1e3, style,
+                lw=1.0, label=f"{pp:.2f} mm p-p, arm {float(arm.mass()):.3f} kg")
+    a1.set_xlabel("arc length from the pivot [mm]")
+    a1.set_ylabel("in-plane depth [mm]")
+    a1.set_ylim(0.0, 95.0)
+    a1.set_title("bending arm", fontsize=10)
+    a1.legend(frameon=False, fontsize=7, loc="upper right")
+    a2.axhline(0.0, color="k", lw=0.6)
+    a2.set_xlabel("time in the cycle [ms]")
+    a2.set_ylabel("heald-frame deviation [mm]")
+    a2.set_title("deviation at 800 r/min, 690 N, 140 mm stroke", fontsize=10)
+    a2.legend(frameon=False, fontsize=8)
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+    return fig
+
+
+def _design_text(design: dict, setup) -> str:
+    """A short legend label for an optimised design (its variables in mm)."""
+    depths = [v for k, v in design.items() if k.startswith("depth")]
+    parts = [f"{1e3 * float(setup.machine.arm.thickness):.0f} mm plate"]
+    if depths:
+        parts.append("depths " + "/".join(f"{v:.0f}" for v in depths) + " mm")
+    return "optimised: " + ", ".join(parts)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("which", nargs="*", default=["cycle", "sweep", "sobol"],
-                        choices=["cycle", "sweep", "sobol"], help="figures (default: all)")
+    parser.add_argument("which", nargs="*", default=["cycle", "sweep", "sobol", "design"],
+                        choices=["cycle", "sweep", "sobol", "design"],
+                        help="figures (default: all)")
     parser.add_argument("--sobol-dir", default=None,
                         help="a finished `jaxdobby sobol` run to plot (its indices.json)")
     parser.add_argument("--n", type=int, default=256,
                         help="base samples of a fresh Sobol run (without --sobol-dir)")
+    parser.add_argument("--design-dirs", nargs="*",
+                        default=["notebooks/runs/design-thickness", "notebooks/runs/design-depth"],
+                        help="finished `jaxdobby optimize` runs to plot (design.toml, result.json)")
     ns = parser.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
     OUT.mkdir(parents=True, exist_ok=True)
     makers = {"cycle": cycle, "sweep": sweep,
-              "sobol": lambda: sobol(sobol_indices(ns.sobol_dir, ns.n))}
+              "sobol": lambda: sobol(sobol_indices(ns.sobol_dir, ns.n)),
+              "design": lambda: design(ns.design_dirs)}
     for name in ns.which:
         fig = makers[name]()
         path = OUT / f"{name}.png"
