@@ -107,6 +107,8 @@ def section(path: Path, data) -> str:
         out.append(f"(`{path.name}` has no `markdown` or `rows` entry; see the file.)")
     if data.get("figure"):
         out += ["", f"![{data['figure']}](results/{data['figure']})"]
+    if isinstance(data.get("note"), str) and data["note"].strip():
+        out += ["", data["note"].strip()]
     if line:
         out += ["", line]
     out += ["", f"Source: `results/{path.name}`.", ""]
