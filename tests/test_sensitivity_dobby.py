@@ -86,6 +86,8 @@ def test_unreachable_stroke_bounds_are_refused_before_running(tmp_path, capsys):
     assert "parameter 'stroke': bounds must lie in the reachable range" in err
 
 
+@pytest.mark.slow  # ~100 s: a fresh process compiles the dobby batch; the two-process
+# equality itself is in the default suite (test_sensitivity_parallel, on the Ishigami model)
 def test_dobby_study_joins_jax_distributed_before_building_the_model(tmp_path):
     """Building the dobby (default machine, reachable strokes) runs JAX, which starts the
     backend; jax.distributed must be joined before that or it refuses. A one-process

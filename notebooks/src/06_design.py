@@ -127,7 +127,7 @@ if not QUICK:
 #   at 6 mm stops in the local minimum at 7.15 mm. A batched scan of ten starts (one vmapped
 #   solve) finds the basin of the largest thickness the pitch between arms allows: 8 mm, −20.8 %
 #   at 800 r/min
-#   (2.709 → 2.146 mm; `benchmarks/results/optimize_designs.md` has 1200 r/min too); the source
+#   (2.709 → 2.146 mm; −26.5 % at 1200 r/min, the README's "Designing the arm"); the source
 #   study found −14 % and −24 % for 7 and 8 mm. The arm is then 33 % heavier
 #   (0.423 → 0.564 kg), which is what the next problem avoids.
 # * **Shape within the mass budget.** Moving material along the arm — deep around the ring-link
