@@ -24,9 +24,10 @@ stores the step residuals (a few hundred floats per step: megabytes). Both need 
 matrix at the periodic state for the implicit-function derivative (2k tangents through one
 cycle), and forward mode carries its tangents through the model's assembly and every
 collocation step as well. Measured on the default machine (2 CPU cores,
-``benchmarks/results/gradient.json``): one forward solve 0.067 s; forward mode 0.60 s for one
-variable and 0.97 s for eight; reverse mode 0.36 s for eight. Reverse mode is the cheaper for
-any number of variables, so ``auto`` picks it (:data:`FORWARD_MAX_VARIABLES` = 0).
+``benchmarks/results/gradient.json``, two runs): one forward solve 0.056–0.067 s; forward mode
+0.44–0.60 s for one variable and 0.97 s for eight; reverse mode 0.36–0.39 s for eight. Reverse
+mode is the cheaper for any number of variables, so ``auto`` picks it
+(:data:`FORWARD_MAX_VARIABLES` = 0).
 """
 
 from __future__ import annotations
