@@ -185,9 +185,9 @@ class Evaluator:
 
     def value(self, u: Array, basis: Array | str | None = None
               ) -> tuple[float, dict[str, np.ndarray]]:
-        """J(u) and the per-speed values (no gradient), optionally on another reduction basis
-        (e.g. the modes of the design ``u`` itself: then the values are those of the modal
-        model that ``jaxdobby simulate`` runs, up to round-off)."""
+        """J(u) and the per-speed values (no gradient), optionally on another reduction basis:
+        an array, or ``"own"`` (the design's own modes: the modal model that
+        ``jaxdobby simulate`` runs, up to round-off)."""
         space = self.space if basis is None else dataclasses.replace(self.space, basis=basis)
         values = _values(space, jnp.asarray(u), self.speeds, self.steps)
         j = combine(self.objective, values, self.reference)

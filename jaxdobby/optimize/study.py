@@ -102,8 +102,9 @@ def run_study(study: Study, progress: Callable[[str], None] | None = None) -> St
     u_final = jnp.asarray(result.u)
     final_setup = space.setup(u_final)
     speeds_rpm = [w / RPM for w in study.objective.speeds]
-    start = _verified(evaluator, space.initial, space.setup(space.initial))
-    final = _verified(evaluator, u_final, final_setup)
+    start_setup = space.setup(space.initial)
+    start = _verified(evaluator, space.initial)
+    final = _verified(evaluator, u_final)
     summary = _summary(study, evaluator, result, start, final, speeds_rpm,
                        seconds={"first_compile_and_solve": t_forward, "optimisation": t_optimize,
                                     "total": time.perf_counter() - t0})
@@ -115,7 +116,7 @@ def run_study(study: Study, progress: Callable[[str], None] | None = None) -> St
     toml = (f"# jaxdobby optimize: optimised design; the objective's speeds were "
             f"{', '.join(f'{s:g}' for s in speeds_rpm)} r/min (run another with --speed)\n"
             + to_toml(setup_out, RunOptions(method="collocation", steps=evaluator.steps)))
-    profiles = {"start": _profile(space.setup(space.initial)), "optimised": _profile(final_setup)}
+    profiles = {"start": _profile(start_setup), "optimised": _profile(final_setup)}
     deviations = {f"{rpm:g} r/min": {
         f"start ({start['deviation_pp'][i] * 1e3:.3f} mm p-p)":
             (start["time"][i], start["deviation_series"][i]),
@@ -172,7 +173,7 @@ def _constraint_fn(space: DesignSpace, limits: Constraints):
     return fn
 
 
-def _verified(evaluator: Evaluator, u, setup: Setup) -> dict:
+def _verified(evaluator: Evaluator, u) -> dict:
     _, values = evaluator.value(u, basis="own")
     return values
 
