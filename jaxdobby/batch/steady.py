@@ -26,7 +26,9 @@ adaptive reference :func:`jaxdobby.simulate.simulate` (``method="adaptive"``, rt
 the 16 corners of the default Sobol box (400–1200 r/min, 345–1035 N, 80–140 mm, 6–8 mm; a slow
 test). Measured there (largest relative error over the corners and the five metrics): 576
 steps 2.2e-5, 432 steps 2.9e-5, 360 steps 8.3e-5, 288 steps 2.5e-4 (the velocity deviation's
-amplitude goes first). The shooting tolerance costs little accuracy: the metrics are those of a
+amplitude goes first); with the parabola-refined extremes of :mod:`jaxdobby.batch.stepper`, 432
+steps: 2.3e-5 on the velocity deviation's amplitude, ≤ 2.1e-6 on the other four (2026-12-01,
+``benchmarks/sobol_throughput.py``). The shooting tolerance costs little accuracy: the metrics are those of a
 start state within ~``tolerance`` of the periodic one, and on 256 random samples 1e-5 changed
 them by ≤ 7e-7 relative against 1e-7.
 """
