@@ -28,9 +28,9 @@ test). Measured there (largest relative error over the corners and the five metr
 steps 2.2e-5, 432 steps 2.9e-5, 360 steps 8.3e-5, 288 steps 2.5e-4 (the velocity deviation's
 amplitude goes first); with the parabola-refined extremes of :mod:`jaxdobby.batch.stepper`, 432
 steps: 2.3e-5 on the velocity deviation's amplitude, ≤ 2.1e-6 on the other four (2026-12-01,
-``benchmarks/sobol_throughput.py``). The shooting tolerance costs little accuracy: the metrics are those of a
-start state within ~``tolerance`` of the periodic one, and on 256 random samples 1e-5 changed
-them by ≤ 7e-7 relative against 1e-7.
+``benchmarks/sobol_throughput.py``). The shooting tolerance costs little accuracy: the metrics
+are those of a start state within ~``tolerance`` of the periodic one, and on 256 random samples
+1e-5 changed them by ≤ 7e-7 relative against 1e-7.
 """
 
 from __future__ import annotations
