@@ -11,10 +11,11 @@ accelerations Aᵢ ≈ q̈(t_n + cᵢh):
 The stage equations are solved by simplified Newton iterations with one matrix per step,
 M̄ + h a⊗C̄ + h² a²⊗K̄ (3k × 3k). Diagonalising the Butcher matrix a = T Λ T⁻¹ (one real
 eigenvalue, one complex pair) splits it into a real k × k system M̄ + hγC̄ + h²γ²K̄ and a
-complex one (Butcher 1976; Hairer & Wanner §IV.8), both factorised here without pivoting: their
-real parts are M̄ plus small multiples of C̄ and K̄, symmetric positive definite up to the small
-gyroscopic terms, for which Gaussian elimination without pivoting is stable (Higham, *Accuracy and
-Stability of Numerical Algorithms*, §10.4). Complex numbers are carried as (real, imaginary)
+complex one (Butcher 1976; Hairer & Wanner §IV.8), both inverted here by Gaussian elimination
+without pivoting (once per step, see :class:`StageSolver`): their real parts are M̄ plus small
+multiples of C̄ and K̄, symmetric positive definite up to the small gyroscopic terms, for which
+Gaussian elimination without pivoting is stable (Higham, *Accuracy and Stability of Numerical
+Algorithms*, §10.4). Complex numbers are carried as (real, imaginary)
 pairs of float64 arrays (faster on a CPU than complex128 here).
 """
 
