@@ -91,8 +91,7 @@ EXTRAPOLATE = np.stack([_lagrange(1.0 + c) for c in NODES])
 
 
 def stage_states(q, v, acc, h):
-    """(Qᵢ, Vᵢ), each (3, k), from q_n, v_n (k,) and the stage accelerations (3, k) (any
-    trailing lane axes, see :func:`matmul`)."""
+    """(Qᵢ, Vᵢ), each (3, k), from q_n, v_n (k,) and the stage accelerations (3, k)."""
     vel = v[None] + h * weigh(MATRIX, acc)
     pos = q[None] + h * weigh(NODES[:, None], v[None]) + h**2 * weigh(MATRIX2, acc)
     return pos, vel
@@ -107,8 +106,7 @@ def advance(q, v, acc, h):
 # Why unrolled: the batch evaluator runs the passes under jax.vmap, where a product of per-sample
 # matrices becomes a dot with a batch dimension, which XLA's CPU backend runs as one tiny matrix
 # product per sample. Measured on 256 samples, a (3, 4)·(4, 4) product: 99 µs as a batched dot,
-# 5 µs as the unrolled elementwise sum below. The functions index their operands' leading axes
-# only, so any trailing axes ride along by broadcasting.
+# 5 µs as the unrolled elementwise sum below.
 def weigh(w, x) -> Array:
     """Σⱼ w[..., j] x[j]: constant weights w (numpy, (n,) or (m, n)) on the leading axis of x."""
     w = np.asarray(w)
@@ -124,7 +122,7 @@ def matmul(a, b) -> Array:
 
 
 def transpose(a) -> Array:
-    """A (m, n, …) matrix's transpose (n, m, …) (trailing axes stay last)."""
+    """A (m, n, …) matrix's transpose (n, m, …)."""
     return jnp.swapaxes(a, 0, 1)
 
 
@@ -206,8 +204,7 @@ class StageSolver:
 
     def __init__(self, mass, damping, stiffness, h):
         g, lam = GAMMA, LAMBDA
-        k = mass.shape[0]
-        eye = jnp.eye(k).reshape((k, k) + (1,) * (mass.ndim - 2)) + jnp.zeros_like(mass)
+        eye = jnp.eye(mass.shape[0])
         self.real = lu_solve(lu(mass + h * g * damping + (h * g) ** 2 * stiffness), eye)
         l2 = lam * lam
         re = mass + h * lam.real * damping + h * h * l2.real * stiffness

@@ -96,19 +96,19 @@ def _chain_jacobian(ds: Downstream, frame, u, ud, acc):
         ct = chain_terms(ds, frame, uu, uud)
         return ct.g * ct.phi - ct.mu * ct.g * gl.matmul(ct.g[None], acc)[0]
 
-    eye = jnp.eye(2).reshape((2, 2) + (1,) * (u.ndim - 1))
-    zero = jnp.zeros_like(eye)
-    dirs_u = jnp.broadcast_to(jnp.concatenate([eye, zero]), (4,) + u.shape)
-    dirs_ud = jnp.broadcast_to(jnp.concatenate([zero, eye]), (4,) + u.shape)
+    eye = jnp.eye(2)
+    zero = jnp.zeros((2, 2))
+    dirs_u = jnp.concatenate([eye, zero])
+    dirs_ud = jnp.concatenate([zero, eye])
     cols = jax.vmap(lambda a, b: jax.jvp(force, (u, ud), (a, b))[1])(dirs_u, dirs_ud)
     return gl.transpose(cols[:2]), gl.transpose(cols[2:])
 
 
 def _parabola_peaks(t, y):
-    """Largest and smallest values of the parabolas through (t, y)[:, j−1:j+2] at interior local
-    extrema of the sequences y (axis 1), else the samples themselves."""
-    tm, t0, tp = t[:, :-2], t[:, 1:-1], t[:, 2:]
-    ym, y0, yp = y[:, :-2], y[:, 1:-1], y[:, 2:]
+    """Largest and smallest values of the parabolas through (t, y)[j−1:j+2] at interior local
+    extrema of the sequence y (last axis), else the samples themselves."""
+    tm, t0, tp = t[..., :-2], t[..., 1:-1], t[..., 2:]
+    ym, y0, yp = y[..., :-2], y[..., 1:-1], y[..., 2:]
     a, b = tm - t0, tp - t0
     dm, dp = (ym - y0) / a, (yp - y0) / b
     r = (dp - dm) / (b - a)
@@ -119,7 +119,7 @@ def _parabola_peaks(t, y):
     is_min = (y0 <= ym) & (y0 <= yp) & (r > 0.0)
     hi = jnp.where(is_max, vertex, y0)
     lo = jnp.where(is_min, vertex, y0)
-    return jnp.nanmax(hi, axis=1), jnp.nanmin(lo, axis=1)
+    return jnp.nanmax(hi, axis=-1), jnp.nanmin(lo, axis=-1)
 
 
 def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: Array, *,
@@ -138,7 +138,6 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         record: return the trajectory (see :class:`PassResult`).
     """
     k = x0.shape[0] // 2
-    lanes = x0.shape[1:]
     n_steps = tables.height.shape[0]
     h = period / n_steps
     rows = ds.rows
@@ -151,7 +150,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         pos, vel = _stored(gl.stage_states(q, v, acc, h), index)
         res, ct = _residuals(arm, ds, st, pos, vel, acc, index)
         mid = jax.tree.map(lambda a: a[1], st)
-        mass = arm.mass + ct.mu[1] * (ct.g[1][:, None] * ct.g[1][None])
+        mass = arm.mass + ct.mu[1] * jnp.outer(ct.g[1], ct.g[1])
         stiff = mid.stiffness
         damp = arm.damping + 2.0 * mid.frame.omega * arm.gyroscopic
         if full_jacobian:
@@ -160,8 +159,8 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
             stiff, damp = _stored((stiff - gl.matmul(ju, rows), damp - gl.matmul(jud, rows)),
                                   index)
         solver = _stored(gl.StageSolver(mass, damp, stiff, h), index)
-        acc = acc + solver.solve(res)
-        pos, vel = _stored(gl.stage_states(q, v, _stored(acc, index), h), index)
+        acc = _stored(acc + solver.solve(res), index)
+        pos, vel = _stored(gl.stage_states(q, v, acc, h), index)
         res, ct = _residuals(arm, ds, st, pos, vel, acc, index)
         out_acc = acc
         acc = _stored(acc + solver.solve(res), index)
@@ -188,22 +187,21 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
                 ds, st.frame, gl.matmul(pos, gl.transpose(rows)))
             head = jnp.where(index == 0, values[:, :2], head)
             ext = (t_seq[-2:], y_seq[:, -2:], head, jnp.fmax(hi, new_hi), jnp.fmin(lo, new_lo),
-                   ok & jnp.all(reach, axis=0))
+                   ok & jnp.all(reach))
         return (qn, vn, acc, tan, ext), ((q, v, acc) if record else None)
 
     # starting predictor: q̈ from the equations at the initial state and the first node
     first = jax.tree.map(lambda a: a[0, :1], tables)
     q0, v0 = x0[:k], x0[k:]
-    res0, ct0 = _residuals(arm, ds, first, q0[None], v0[None], jnp.zeros((1,) + q0.shape))
-    g0 = ct0.g[0]
-    a0 = gl.lu_solve(gl.lu(arm.mass + ct0.mu[0] * (g0[:, None] * g0[None])), res0[0])
-    prev = jnp.broadcast_to(a0[None], (3,) + a0.shape)
-    tan0 = jnp.zeros((2 * k, 0) + lanes) if tangents is None else tangents
+    res0, ct0 = _residuals(arm, ds, first, q0[None], v0[None], jnp.zeros((1, k)))
+    a0 = gl.lu_solve(gl.lu(arm.mass + ct0.mu[0] * jnp.outer(ct0.g[0], ct0.g[0])), res0[0])
+    prev = jnp.tile(a0, (3, 1))
+    tan0 = jnp.zeros((2 * k, 0)) if tangents is None else tangents
     ext0 = ()
     if outputs:
-        nan2 = jnp.full((3, 2) + lanes, jnp.nan)
-        ext0 = (jnp.full((2,) + lanes, jnp.nan), nan2, nan2, jnp.full((3,) + lanes, -jnp.inf),
-                jnp.full((3,) + lanes, jnp.inf), jnp.ones(lanes, bool))
+        nan2 = jnp.full((3, 2), jnp.nan)
+        ext0 = (jnp.full(2, jnp.nan), nan2, nan2, jnp.full(3, -jnp.inf), jnp.full(3, jnp.inf),
+                jnp.array(True))
     (q, v, _, tan, ext), trajectory = jax.lax.scan(step, (q0, v0, prev, tan0, ext0),
                                                    (jnp.arange(n_steps), tables))
     if outputs:
@@ -214,6 +212,6 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         seam_hi, seam_lo = _parabola_peaks(t_seq[None], y_seq)
         maxima, minima = jnp.fmax(hi, seam_hi), jnp.fmin(lo, seam_lo)
     else:
-        maxima = minima = jnp.full((3,) + lanes, jnp.nan)
-        ok = jnp.ones(lanes, bool)
+        maxima = minima = jnp.full(3, jnp.nan)
+        ok = jnp.array(True)
     return PassResult(jnp.concatenate([q, v]), tan, maxima, minima, ok, trajectory)
