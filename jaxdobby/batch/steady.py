@@ -17,7 +17,9 @@ monodromy matrix Φ gives the chord iteration x ← x + (I − Φ)⁻¹(F(x) −
 :mod:`jaxdobby.steady_state`). The chord contracts by ~1e-3 per cycle (the frozen tangents'
 error), so two or three further cycles — each also recording the metrics of its start state —
 bring the residual ‖F(x) − x‖/‖x‖ (:func:`jaxdobby.steady_state.relative_residual`) below
-``tolerance``; the metrics returned are those of that last cycle's start state x.
+``tolerance``; the metrics returned are those of that last cycle's start state x. Under
+``jax.vmap`` the chord cycles run in rounds over the lanes still pending, so a batch does not
+integrate its slowest lane's cycle count for every lane (:func:`_settle`).
 
 **Accuracy.** With the default 432 steps per cycle (6 per 1/72 of the cycle, so that the
 modulator's dwell boundaries at 5/72, 31/72, 41/72, 67/72 of the cycle are step boundaries for
@@ -35,11 +37,14 @@ are those of a start state within ~``tolerance`` of the periodic one, and on 256
 
 from __future__ import annotations
 
+import math
+from typing import NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax import Array
-from jax.custom_batching import sequential_vmap
+from jax.custom_batching import custom_vmap, sequential_vmap
 
 from .._x64 import require_x64
 from ..dobby import DobbyModel, build_model
@@ -56,6 +61,10 @@ DEFAULT_STEPS = 432
 METRICS = ("deviation_pp", "deviation_max", "deviation_min", "velocity_deviation_amp",
            "acceleration_amp")
 """The metrics :func:`steady_state_metrics` returns (SI units), besides the status entries."""
+
+ROUND_SHARE = 0.25
+"""Share of a batch's lanes integrated per round of the batched chord iteration
+(:func:`_settle`; measured best of 1/8, 1/4, 1/2 for 256 samples)."""
 
 
 def static_state(model: DobbyModel, arm: ArmTerms, ds: Downstream) -> Array:
@@ -144,22 +153,8 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
     first = cycle_pass(arm, ds, tables, period, x0, tangents=eye, full_jacobian=True)
     chord_matrix = sequential_vmap(jnp.linalg.inv)(eye - first.tangents)
     x1 = x0 + chord_matrix @ (first.end - x0)
-
-    def chord(carry):
-        i, x, _, _ = carry
-        run = cycle_pass(arm, ds, tables, period, x, outputs=True)
-        r = relative_residual(x, run.end)
-        return i + 1, x + chord_matrix @ (run.end - x), r, run
-
-    def unconverged(carry):
-        i, _, r, _ = carry
-        return (i < max_passes) & (r > tolerance)
-
-    nan3 = jnp.full(3, jnp.nan)
-    start = (jnp.asarray(0), x1, jnp.asarray(jnp.inf),
-             first._replace(tangents=jnp.zeros((2 * k, 0)), maxima=nan3, minima=nan3))
-    passes, _, residual, last = jax.lax.while_loop(unconverged, chord, start)
-    hi, lo = last.maxima, last.minima
+    passes, residual, hi, lo, reachable = _settle(cycle, chord_matrix, x1, tolerance=tolerance,
+                                                  max_passes=max_passes)
     out = {
         "deviation_pp": hi[0] - lo[0],
         "deviation_max": hi[0],
@@ -170,5 +165,84 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
     finite = jnp.all(jnp.stack([jnp.isfinite(v) for v in out.values()]))
     out["periodicity"] = residual
     out["cycles"] = passes + 1
-    out["ok"] = finite & last.reachable & (residual <= tolerance)
+    out["ok"] = finite & reachable & (residual <= tolerance)
     return out
+
+
+class _Lanes(NamedTuple):
+    """The chord iteration's state: chord passes run, next start state x, residual of the last
+    pass, its extremes (maxima, minima) and reachability."""
+
+    passes: Array
+    x: Array
+    residual: Array
+    maxima: Array
+    minima: Array
+    reachable: Array
+
+
+def _chord_pass(cycle: Cycle, chord_matrix: Array, lanes: _Lanes) -> _Lanes:
+    """One chord cycle of one sample: integrate from x, record, step x ← x + (I − Φ)⁻¹(F(x) − x)."""
+    x = lanes.x
+    run = cycle_pass(cycle.arm, cycle.downstream, cycle.tables, cycle.period, x, outputs=True)
+    return _Lanes(lanes.passes + 1, x + chord_matrix @ (run.end - x),
+                  relative_residual(x, run.end), run.maxima, run.minima, run.reachable)
+
+
+def _settle(cycle: Cycle, chord_matrix: Array, x1: Array, *, tolerance: float,
+            max_passes: int):
+    """Chord cycles from x1 until the residual is ≤ ``tolerance`` or ``max_passes`` ran.
+
+    Returns (passes, residual, maxima, minima, reachable) of the last cycle. One sample runs a
+    ``lax.while_loop``. A batch (``jax.vmap``, through ``jax.custom_batching.custom_vmap``)
+    does not: a vmapped while loop runs every lane until the slowest has converged (on 256
+    samples of the default box the lanes need 1 to 4 chord cycles, 2.3 on average, and the
+    batch ran 4 for all). Here each round integrates one cycle for W of the lanes still pending
+    (the first W; W = :data:`ROUND_SHARE` of the batch), copying their tables in and their
+    results out, until none is pending: each lane goes through the same cycles as alone, and
+    the batch integrates about the cycles its lanes need, rounded up to whole rounds.
+    Measured (256 samples, one core each for two runs side by side, ad hoc, 2026-12-02):
+    ``steady_state_metrics`` 5.4 ms per sample against 7.9 ms with the vmapped while loop, the
+    metrics equal to 6e-14; W = 1/8, 1/2 of the batch gave 6.1, 6.9 ms (narrow rounds keep the
+    working set in cache but pay more rounds).
+    """
+    def pending(lanes):
+        return (lanes.passes < max_passes) & (lanes.residual > tolerance)
+
+    def start(x):
+        nan3 = jnp.full(x.shape[:-1] + (3,), jnp.nan)
+        return _Lanes(jnp.zeros(x.shape[:-1], int), x, jnp.full(x.shape[:-1], jnp.inf), nan3,
+                      nan3, jnp.ones(x.shape[:-1], bool))
+
+    def result(lanes):
+        return lanes.passes, lanes.residual, lanes.maxima, lanes.minima, lanes.reachable
+
+    @custom_vmap
+    def settle(cycle, chord_matrix, x1):
+        return result(jax.lax.while_loop(pending, lambda c: _chord_pass(cycle, chord_matrix, c),
+                                         start(x1)))
+
+    @settle.def_vmap
+    def settle_batch(size, batched, cycle, chord_matrix, x1):
+        cycle, chord_matrix, x1 = jax.tree.map(
+            lambda a, b: a if b else jnp.broadcast_to(a, (size,) + jnp.shape(a)),
+            (cycle, chord_matrix, x1), tuple(batched))
+        width = max(1, math.ceil(size * ROUND_SHARE))
+
+        def one_round(lanes):
+            todo = pending(lanes)
+            pick = jnp.argsort(jnp.where(todo, 0, 1), stable=True)[:width]
+            take = jax.tree.map(lambda a: a[pick], (cycle, chord_matrix, lanes))
+            new = jax.vmap(_chord_pass)(*take)
+            keep = todo[pick]
+
+            def put(old, value):
+                mask = keep.reshape(keep.shape + (1,) * (value.ndim - 1))
+                return old.at[pick].set(jnp.where(mask, value, old[pick]))
+
+            return jax.tree.map(put, lanes, new)
+
+        out = result(jax.lax.while_loop(lambda c: jnp.any(pending(c)), one_round, start(x1)))
+        return out, jax.tree.map(lambda _: True, out)
+
+    return settle(cycle, chord_matrix, x1)
