@@ -152,14 +152,17 @@ def test_vmap_equals_single_samples_and_failures_are_flagged():
     assert [bool(v) for v in batched["ok"]] == [True, True, False]
 
 
-def test_batch_rounds_give_every_lane_its_own_cycles():
-    """The batched chord iteration integrates only pending lanes, a quarter of the batch per
-    round (jaxdobby.batch.steady._settle): each lane must get the cycle count, the flag and the
-    metrics it gets alone (the per-sample while loop, run by lax.map, which does not batch).
-    Eight random rows of the default box on a coarse grid (144 steps, cheap) need between 3
-    and 7 cycles, so lanes finish in different rounds and some hit max_passes; agreement to
-    1e-10 relative as for vmap above (measured 6e-12: the lanes' arithmetic is the same, XLA's
-    vectorisation of it differs)."""
+def test_batch_rounds_give_every_lane_its_own_cycles(monkeypatch):
+    """The batched chord iteration integrates only pending lanes, ROUND_WIDTH of them per round
+    (jaxdobby.batch.steady._settle; 3 here, so that a round takes part of the 8 lanes): each
+    lane must get the cycle count, the flag and the metrics it gets alone (the per-sample while
+    loop, run by lax.map, which does not batch). Eight random rows of the default box on a
+    coarse grid (144 steps, cheap) need between 3 and 7 cycles, so lanes finish in different
+    rounds and some hit max_passes; agreement to 1e-10 relative as for vmap above (measured
+    6e-12: the lanes' arithmetic is the same, XLA's vectorisation of it differs)."""
+    from jaxdobby.batch import steady
+
+    monkeypatch.setattr(steady, "ROUND_WIDTH", 3)
     rng = np.random.default_rng(1)
     lo = np.array([400 * RPM, 345.0, 0.080, 0.006])
     hi = np.array([1200 * RPM, 1035.0, 0.140, 0.008])

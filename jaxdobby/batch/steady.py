@@ -37,7 +37,6 @@ are those of a start state within ~``tolerance`` of the periodic one, and on 256
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import equinox as eqx
@@ -62,9 +61,9 @@ METRICS = ("deviation_pp", "deviation_max", "deviation_min", "velocity_deviation
            "acceleration_amp")
 """The metrics :func:`steady_state_metrics` returns (SI units), besides the status entries."""
 
-ROUND_SHARE = 0.25
-"""Share of a batch's lanes integrated per round of the batched chord iteration
-(:func:`_settle`; measured best of 1/8, 1/4, 1/2 for 256 samples)."""
+ROUND_WIDTH = 64
+"""Lanes integrated per round of the batched chord iteration (:func:`_settle`); all of a
+smaller batch."""
 
 
 def static_state(model: DobbyModel, arm: ArmTerms, ds: Downstream) -> Array:
@@ -181,10 +180,12 @@ class _Lanes(NamedTuple):
     reachable: Array
 
 
-def _chord_pass(cycle: Cycle, chord_matrix: Array, lanes: _Lanes) -> _Lanes:
-    """One chord cycle of one sample: integrate from x, record, step x ← x + (I − Φ)⁻¹(F(x) − x)."""
+def _chord_pass(cycle: Cycle, chord_matrix: Array, lanes: _Lanes, **tables) -> _Lanes:
+    """One chord cycle of one sample: integrate from x, record, step x ← x + (I − Φ)⁻¹(F(x) − x).
+    ``tables``: ``tables=`` and ``steps=`` for :func:`cycle_pass` instead of ``cycle.tables``."""
     x = lanes.x
-    run = cycle_pass(cycle.arm, cycle.downstream, cycle.tables, cycle.period, x, outputs=True)
+    run = cycle_pass(cycle.arm, cycle.downstream, tables.pop("tables", cycle.tables),
+                     cycle.period, x, outputs=True, **tables)
     return _Lanes(lanes.passes + 1, x + chord_matrix @ (run.end - x),
                   relative_residual(x, run.end), run.maxima, run.minima, run.reachable)
 
@@ -198,13 +199,17 @@ def _settle(cycle: Cycle, chord_matrix: Array, x1: Array, *, tolerance: float,
     does not: a vmapped while loop runs every lane until the slowest has converged (on 256
     samples of the default box the lanes need 1 to 4 chord cycles, 2.3 on average, and the
     batch ran 4 for all). Here each round integrates one cycle for W of the lanes still pending
-    (the first W; W = :data:`ROUND_SHARE` of the batch), copying their tables in and their
-    results out, until none is pending: each lane goes through the same cycles as alone, and
-    the batch integrates about the cycles its lanes need, rounded up to whole rounds.
-    Measured (256 samples, one core each for two runs side by side, ad hoc, 2026-12-02):
-    ``steady_state_metrics`` 5.4 ms per sample against 7.9 ms with the vmapped while loop, the
-    metrics equal to 6e-14; W = 1/8, 1/2 of the batch gave 6.1, 6.9 ms (narrow rounds keep the
-    working set in cache but pay more rounds).
+    (the first W; W = :data:`ROUND_WIDTH`), reading their tables step by step out
+    of the batch's (step-major, so that a round does not first copy its lanes' whole tables:
+    XLA's CPU backend copies such 5-D arrays slowly: 0.8 ms per sample for the (432, 3, 4, 4)
+    stiffness table in a profile, about a cycle's cost), until none is pending: each lane goes through the same cycles as alone, and the batch integrates about
+    the cycles its lanes need, rounded up to whole rounds. Measured (256 samples, one core,
+    nothing else running; ad hoc, 2026-12-02): ``steady_state_metrics`` 5.5 ms per sample,
+    against 8.0 ms with the vmapped while loop and 6.8 ms with the tables copied per round;
+    the metrics equal to 6e-14. W = 32, 64, 128 of 256 lanes (two runs side by side, tables
+    copied): 6.1, 5.4, 6.9 ms; in ``benchmarks/sobol_throughput.py`` (chunks of 256) one
+    device gave 164 samples/s with W = 64 and 135 with 128, two devices of one process (128
+    lanes each) 252 with W = 32 and 273 with 64: 64 lanes is best in both.
     """
     def pending(lanes):
         return (lanes.passes < max_passes) & (lanes.residual > tolerance)
@@ -227,13 +232,25 @@ def _settle(cycle: Cycle, chord_matrix: Array, x1: Array, *, tolerance: float,
         cycle, chord_matrix, x1 = jax.tree.map(
             lambda a, b: a if b else jnp.broadcast_to(a, (size,) + jnp.shape(a)),
             (cycle, chord_matrix, x1), tuple(batched))
-        width = max(1, math.ceil(size * ROUND_SHARE))
+        width = min(size, ROUND_WIDTH)
+
+        # the tables step-major, (N, batch, 3, ...): a round reads step n of its lanes from
+        # them (a small gather per step) instead of copying its lanes' whole tables first
+        by_step = jax.tree.map(lambda a: jnp.moveaxis(a, 0, 1), cycle.tables)
+        steps = cycle.tables.height.shape[1]
+        rest = eqx.tree_at(lambda c: c.tables, cycle, None)
+
+        def lane_pass(lane, c, m, lanes):
+            def table_at(n):
+                return jax.tree.map(lambda a: a[n, lane], by_step)
+
+            return _chord_pass(c, m, lanes, tables=table_at, steps=steps)
 
         def one_round(lanes):
             todo = pending(lanes)
             pick = jnp.argsort(jnp.where(todo, 0, 1), stable=True)[:width]
-            take = jax.tree.map(lambda a: a[pick], (cycle, chord_matrix, lanes))
-            new = jax.vmap(_chord_pass)(*take)
+            take = jax.tree.map(lambda a: a[pick], (rest, chord_matrix, lanes))
+            new = jax.vmap(lane_pass)(pick, *take)
             keep = todo[pick]
 
             def put(old, value):

@@ -122,14 +122,17 @@ def _parabola_peaks(t, y):
     return jnp.nanmax(hi, axis=-1), jnp.nanmin(lo, axis=-1)
 
 
-def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: Array, *,
+def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
                tangents: Array | None = None, full_jacobian: bool = False,
-               outputs: bool = False, record: bool = False) -> PassResult:
+               outputs: bool = False, record: bool = False, steps: int | None = None
+               ) -> PassResult:
     """Integrate one cycle from ``x0`` (see the module docstring).
 
     Args:
         arm, ds: the model's Kane terms and chain.
-        tables: :class:`~jaxdobby.batch.cycle.StageTables` with leading axes (N, 3).
+        tables: :class:`~jaxdobby.batch.cycle.StageTables` with leading axes (N, 3), or a
+            function of the step index n returning step n's, leading axis (3,), with ``steps``
+            = N (to read a lane's tables out of a batch's without copying them first).
         period: T [s].
         x0: initial state (q, q̇), (2k,).
         tangents: (2k, m) tangent vectors to carry, or None.
@@ -138,13 +141,18 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         record: return the trajectory (see :class:`PassResult`).
     """
     k = x0.shape[0] // 2
-    n_steps = tables.height.shape[0]
+    if callable(tables):
+        table_at, n_steps, xs_tables = tables, steps, None
+    else:
+        table_at, n_steps, xs_tables = None, tables.height.shape[0], tables
     h = period / n_steps
     rows = ds.rows
     m = 0 if tangents is None else tangents.shape[1]
 
     def step(carry, xs):
         index, st = xs
+        if table_at is not None:
+            st = table_at(index)
         q, v, prev, tan, ext = carry
         acc = gl.weigh(gl.EXTRAPOLATE, prev)
         pos, vel = _stored(gl.stage_states(q, v, acc, h), index)
@@ -191,7 +199,8 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         return (qn, vn, acc, tan, ext), ((q, v, acc) if record else None)
 
     # starting predictor: q̈ from the equations at the initial state and the first node
-    first = jax.tree.map(lambda a: a[0, :1], tables)
+    step0 = table_at(0) if table_at else jax.tree.map(lambda a: a[0], xs_tables)
+    first = jax.tree.map(lambda a: a[:1], step0)
     q0, v0 = x0[:k], x0[k:]
     res0, ct0 = _residuals(arm, ds, first, q0[None], v0[None], jnp.zeros((1, k)))
     a0 = gl.lu_solve(gl.lu(arm.mass + ct0.mu[0] * jnp.outer(ct0.g[0], ct0.g[0])), res0[0])
@@ -203,11 +212,11 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables: StageTables, period, x0: A
         ext0 = (jnp.full(2, jnp.nan), nan2, nan2, jnp.full(3, -jnp.inf), jnp.full(3, jnp.inf),
                 jnp.array(True))
     (q, v, _, tan, ext), trajectory = jax.lax.scan(step, (q0, v0, prev, tan0, ext0),
-                                                   (jnp.arange(n_steps), tables))
+                                                   (jnp.arange(n_steps), xs_tables))
     if outputs:
         hist_t, hist_y, head, hi, lo, ok = ext
         # the cycle is periodic: refine the extrema at the seam too
-        t_seq = jnp.concatenate([hist_t - 1.0, tables.frame.phase[0, :2]])
+        t_seq = jnp.concatenate([hist_t - 1.0, step0.frame.phase[:2]])
         y_seq = jnp.concatenate([hist_y, head], axis=1)
         seam_hi, seam_lo = _parabola_peaks(t_seq[None], y_seq)
         maxima, minima = jnp.fmax(hi, seam_hi), jnp.fmin(lo, seam_lo)
