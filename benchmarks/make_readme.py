@@ -18,11 +18,13 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
-ORDER = ("simulate", "batch", "gradient", "sobol_throughput")
+ORDER = ("simulate", "batch", "gradient", "sobol_throughput", "batch_profile")
 TITLES = {"simulate": "One default simulation (`bench_simulate.py`)",
           "batch": "Parameter batches (`bench_batch.py`)",
           "gradient": "Gradients of the deviation metric (`bench_gradient.py`)",
-          "sobol_throughput": "Sobol throughput of the dobby (`sobol_throughput.py`, issue 4)"}
+          "sobol_throughput": "Sobol throughput of the dobby (`sobol_throughput.py`, issue 4)",
+          "batch_profile": "Where a chunk of the batch evaluation spends its time "
+                           "(`batch_profile.py`, issue 4)"}
 RERUN = """\
 ## How to rerun
 
@@ -33,6 +35,7 @@ PYTHONPATH=. python benchmarks/bench_simulate.py      # cold/warm simulate vs so
 PYTHONPATH=. python benchmarks/bench_batch.py         # 256 / 4096 / 65 536 samples, 1 and 2 devices
 PYTHONPATH=. python benchmarks/bench_gradient.py      # d deviation / d design vs finite differences
 PYTHONPATH=. python benchmarks/sobol_throughput.py --accuracy  # samples/s, the default study, corners
+PYTHONPATH=. taskset -c 0 python benchmarks/batch_profile.py  # ms per sample of each part, one core
 PYTHONPATH=. python benchmarks/make_readme.py         # this file
 ```
 

@@ -161,3 +161,14 @@ def test_make_readme_reads_results_generically(tmp_path):
     assert "odd.json" in text and "broken.json" in text
     assert "QUICK" not in text
     assert "How to rerun" in text
+
+
+@pytest.mark.slow  # compiles the batch path five times (~5 min on 2 cores)
+def test_batch_profile_quick(tmp_path):
+    _run("batch_profile.py", tmp_path)
+    data = json.loads((tmp_path / "batch_profile_quick.json").read_text())
+    assert data["environment"]["float64"] is True
+    assert all(v > 0 for v in data["per_sample_ms"].values())
+    assert sum(data["cycles_histogram"]) == data["chunk"] == 8
+    # the rounds integrate at most what a vmapped while loop would
+    assert data["chord_cycles_needed"] <= data["chord_cycles_vmapped_while"]
