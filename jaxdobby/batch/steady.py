@@ -180,12 +180,13 @@ class _Lanes(NamedTuple):
     reachable: Array
 
 
-def _chord_pass(cycle: Cycle, chord_matrix: Array, lanes: _Lanes, **tables) -> _Lanes:
+def _chord_pass(cycle: Cycle, chord_matrix: Array, lanes: _Lanes, tables=None,
+                steps: int | None = None) -> _Lanes:
     """One chord cycle of one sample: integrate from x, record, step x ← x + (I − Φ)⁻¹(F(x) − x).
-    ``tables``: ``tables=`` and ``steps=`` for :func:`cycle_pass` instead of ``cycle.tables``."""
+    ``tables``, ``steps``: as :func:`cycle_pass`'s, instead of ``cycle.tables``."""
     x = lanes.x
-    run = cycle_pass(cycle.arm, cycle.downstream, tables.pop("tables", cycle.tables),
-                     cycle.period, x, outputs=True, **tables)
+    run = cycle_pass(cycle.arm, cycle.downstream, cycle.tables if tables is None else tables,
+                     cycle.period, x, outputs=True, steps=steps)
     return _Lanes(lanes.passes + 1, x + chord_matrix @ (run.end - x),
                   relative_residual(x, run.end), run.maxima, run.minima, run.reachable)
 
@@ -199,11 +200,11 @@ def _settle(cycle: Cycle, chord_matrix: Array, x1: Array, *, tolerance: float,
     does not: a vmapped while loop runs every lane until the slowest has converged (on 256
     samples of the default box the lanes need 1 to 4 chord cycles, 2.3 on average, and the
     batch ran 4 for all). Here each round integrates one cycle for W of the lanes still pending
-    (the first W; W = :data:`ROUND_WIDTH`), reading their tables step by step out
-    of the batch's (step-major, so that a round does not first copy its lanes' whole tables:
-    XLA's CPU backend copies such 5-D arrays slowly: 0.8 ms per sample for the (432, 3, 4, 4)
-    stiffness table in a profile, about a cycle's cost), until none is pending: each lane goes through the same cycles as alone, and the batch integrates about
-    the cycles its lanes need, rounded up to whole rounds. Measured (256 samples, one core,
+    (the first W; W = :data:`ROUND_WIDTH`), reading their tables step by step out of the
+    batch's, step-major (copying a round's whole tables first was slower: XLA's CPU backend
+    copies such 5-D arrays slowly), until none is pending: each lane goes through the same
+    cycles as alone, and the batch integrates about the cycles its lanes need, rounded up to
+    whole rounds. Measured (256 samples, one core,
     nothing else running; ad hoc, 2026-12-02): ``steady_state_metrics`` 5.5 ms per sample,
     against 8.0 ms with the vmapped while loop and 6.8 ms with the tables copied per round;
     the metrics equal to 6e-14. W = 32, 64, 128 of 256 lanes (two runs side by side, tables

@@ -199,7 +199,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
         return (qn, vn, acc, tan, ext), ((q, v, acc) if record else None)
 
     # starting predictor: q̈ from the equations at the initial state and the first node
-    step0 = table_at(0) if table_at else jax.tree.map(lambda a: a[0], xs_tables)
+    step0 = jax.tree.map(lambda a: a[0], xs_tables) if table_at is None else table_at(0)
     first = jax.tree.map(lambda a: a[:1], step0)
     q0, v0 = x0[:k], x0[k:]
     res0, ct0 = _residuals(arm, ds, first, q0[None], v0[None], jnp.zeros((1, k)))
