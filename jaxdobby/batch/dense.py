@@ -27,13 +27,34 @@ from jax import Array
 
 from ..dobby import DobbyModel
 from ..steady_state import ShootingResult, periodic_state
-from .chain import chain_reachable
+from . import collocation as gl
+from .chain import Downstream, chain_reachable
 from .collocation import MATRIX2, NODES, dense_weights
+from .cycle import ArmTerms, rigid_arm, tables_at
 from .steady import cycle_of
-from .stepper import cycle_pass
+from .stepper import _residuals, cycle_pass
 
 PER_STEP = 4
 """Output times per collocation step (uniform in time)."""
+
+
+def static_state(model: DobbyModel, arm: ArmTerms, ds: Downstream) -> Array:
+    """x = (q, 0) at rest in the static equilibrium at t = 0 (bottom dwell), by Newton's method
+    on the full residual (three iterations from q = 0; the chain is nearly linear there).
+    ``arm``, ``ds``: ``model``'s :func:`~jaxdobby.batch.cycle.arm_terms` and
+    :func:`~jaxdobby.batch.chain.downstream`."""
+    table = tables_at(arm, ds, rigid_arm(model, jnp.zeros(1)), model.period)
+    k = model.n_modes
+    zero = jnp.zeros((1, k))
+
+    def residual(q):
+        return _residuals(arm, ds, table, q[None], zero, zero)[0][0]
+
+    q = jnp.zeros(k)
+    for _ in range(3):
+        jac = jax.jacfwd(residual)(q)
+        q = q - gl.lu_solve(gl.lu(jac), residual(q))
+    return jnp.concatenate([q, jnp.zeros(k)])
 
 
 class DenseCycle(eqx.Module):
@@ -82,7 +103,8 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
                          full_jacobian=True)
         return run.end, run.tangents
 
-    shooting = periodic_state(period_map, cycle.rest, tolerance=tolerance,
+    rest = static_state(model, arm, ds)
+    shooting = periodic_state(period_map, rest, tolerance=tolerance,
                               max_iterations=max_iterations, linearised=linearised)
     run = cycle_pass(arm, ds, tables, period, shooting.state, record=True)
     q, v, acc = run.trajectory

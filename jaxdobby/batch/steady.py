@@ -10,16 +10,19 @@ time (the same for every sample whatever its speed) and at most ``max_passes`` c
 nothing raises at run time: a sample that does not converge, leaves the chain's workspace or
 produces a non-finite metric has ``ok = False``.
 
-**Periodic state.** Shooting on the period map F: the first cycle starts from the static
-equilibrium at the middle of the bottom dwell (t = 0, where ω = α = 0) and carries the 2k
-tangents of the frozen Newton matrices (with the chain's stiffness and damping), whose
-monodromy matrix Φ gives the chord iteration x ← x + (I − Φ)⁻¹(F(x) − x) (as
-:mod:`jaxdobby.steady_state`). The chord contracts by ~1e-3 per cycle (the frozen tangents'
-error), so two or three further cycles — each also recording the metrics of its start state —
-bring the residual ‖F(x) − x‖/‖x‖ (:func:`jaxdobby.steady_state.relative_residual`) below
-``tolerance``; the metrics returned are those of that last cycle's start state x. Under
-``jax.vmap`` the chord cycles run in rounds over the lanes still pending, so a batch does not
-integrate its slowest lane's cycle count for every lane (:func:`_settle`).
+**Periodic state.** Shooting on the period map F with the chord iteration
+x ← x + (I − Φ)⁻¹(F(x) − x) (as :mod:`jaxdobby.steady_state`), where Φ, the steps' Newton
+matrices and the first x are those of the equations linearised about the rigid motion
+(:mod:`jaxdobby.batch.linear`, built before any cycle is integrated): the first cycle starts
+from the linearised equations' periodic state, each cycle records the metrics of its start
+state x, and the iteration stops when the residual ‖F(x) − x‖/‖x‖
+(:func:`jaxdobby.steady_state.relative_residual`) is below ``tolerance``; the metrics returned
+are those of that last cycle. Most samples of the default box need two cycles (residuals
+~3e-3 from the linearised state, then ~3e-6, below 1e-5: the second cycle's metrics are
+returned; see :mod:`jaxdobby.batch.linear`), the others three or four (152, 97 and 7 of the
+first 256 rows of the default design: ``benchmarks/batch_profile.py``). Under ``jax.vmap`` the
+cycles after the first :data:`FULL_CYCLES` run in rounds over the lanes still pending, so a
+batch does not integrate its slowest lane's cycle count for every lane (:func:`_solve`).
 
 **Accuracy.** With the default 432 steps per cycle (6 per 1/72 of the cycle, so that the
 modulator's dwell boundaries at 5/72, 31/72, 41/72, 67/72 of the cycle are step boundaries for
@@ -52,7 +55,8 @@ from ..steady_state import relative_residual
 from . import collocation as gl
 from .chain import Downstream, downstream
 from .cycle import ArmTerms, StageTables, arm_terms, node_phases, rigid_arm, tables_at
-from .stepper import _residuals, cycle_pass
+from .linear import linearise, linearise_lanes
+from .stepper import cycle_pass
 
 DEFAULT_STEPS = 432
 """Collocation steps per cycle (see the module docstring)."""
@@ -61,27 +65,13 @@ METRICS = ("deviation_pp", "deviation_max", "deviation_min", "velocity_deviation
            "acceleration_amp")
 """The metrics :func:`steady_state_metrics` returns (SI units), besides the status entries."""
 
-ROUND_WIDTH = 64
-"""Lanes integrated per round of the batched chord iteration (:func:`_settle`); all of a
+ROUND_WIDTH = 32
+"""Lanes integrated per round of the batched chord iteration (:func:`_solve`); all of a
 smaller batch."""
 
-
-def static_state(model: DobbyModel, arm: ArmTerms, ds: Downstream) -> Array:
-    """x = (q, 0) at rest in the static equilibrium at t = 0 (bottom dwell), by Newton's method
-    on the full residual (three iterations from q = 0; the chain is nearly linear there).
-    ``arm``, ``ds``: ``model``'s :func:`arm_terms` and :func:`downstream`."""
-    table = tables_at(arm, ds, rigid_arm(model, jnp.zeros(1)), model.period)
-    k = model.n_modes
-    zero = jnp.zeros((1, k))
-
-    def residual(q):
-        return _residuals(arm, ds, table, q[None], zero, zero)[0][0]
-
-    q = jnp.zeros(k)
-    for _ in range(3):
-        jac = jax.jacfwd(residual)(q)
-        q = q - gl.lu_solve(gl.lu(jac), residual(q))
-    return jnp.concatenate([q, jnp.zeros(k)])
+FULL_CYCLES = 2
+"""Cycles every sample integrates, converged or not (the batch integrates them for all its
+lanes at once, without the rounds' gathers; every sample of the default box needs two)."""
 
 
 class Cycle(eqx.Module):
@@ -90,20 +80,18 @@ class Cycle(eqx.Module):
     Attributes:
         arm: Kane's modal terms of the arm. downstream: the chain's constants.
         tables: the rigid motion's terms at the collocation nodes, leading axes (steps, 3).
-        rest: the start state x = (q, 0) of the first cycle (static equilibrium at t = 0).
         period: cycle time T [s].
     """
 
     arm: ArmTerms
     downstream: Downstream
     tables: StageTables
-    rest: Array
     period: Array
 
 
 def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
-    """Build the coupled model of ``setup`` (finite elements, modal reduction, static
-    equilibrium) and tabulate its rigid motion on ``steps`` steps per cycle.
+    """Build the coupled model of ``setup`` (finite elements, modal reduction) and tabulate its
+    rigid motion on ``steps`` steps per cycle.
 
     :func:`steady_state_metrics` runs this once per sample, *sequentially* over a batch
     (``jax.custom_batching.sequential_vmap``): it is where the LAPACK calls are (Cholesky,
@@ -120,7 +108,7 @@ def cycle_of(model: DobbyModel, steps: int = DEFAULT_STEPS) -> Cycle:
     """:class:`Cycle` of an assembled (two-way coupled) ``model`` on ``steps`` steps per cycle."""
     arm, ds = arm_terms(model), downstream(model)
     tables = tables_at(arm, ds, rigid_arm(model, node_phases(steps)), model.period)
-    return Cycle(arm, ds, tables, static_state(model, arm, ds), jnp.asarray(model.period))
+    return Cycle(arm, ds, tables, jnp.asarray(model.period))
 
 
 def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance: float = 1e-5,
@@ -132,7 +120,7 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
             law). Vmappable over its float fields; jittable.
         steps: collocation steps per cycle (static).
         tolerance: relative periodicity residual to stop at and to call converged.
-        max_passes: cycles after the first (static bound of the loop).
+        max_passes: cycles at most (static bound of the loop).
 
     Returns:
         A dict of scalars: :data:`METRICS`, ``periodicity`` (the residual), ``cycles``
@@ -144,16 +132,8 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
                          f"{setup.machine.coupling!r} (use jaxdobby.simulate for one-way)")
     dynamic, static = eqx.partition(setup, eqx.is_array)
     cycle = sequential_vmap(lambda d: prepare(eqx.combine(d, static), steps))(dynamic)
-    arm, ds, tables, period = cycle.arm, cycle.downstream, cycle.tables, cycle.period
-    k = arm.mass.shape[0]
-    eye = jnp.eye(2 * k)
-
-    x0 = cycle.rest
-    first = cycle_pass(arm, ds, tables, period, x0, tangents=eye, full_jacobian=True)
-    chord_matrix = sequential_vmap(jnp.linalg.inv)(eye - first.tangents)
-    x1 = x0 + chord_matrix @ (first.end - x0)
-    passes, residual, hi, lo, reachable = _settle(cycle, chord_matrix, x1, tolerance=tolerance,
-                                                  max_passes=max_passes)
+    passes, residual, hi, lo, reachable = _solve(cycle, tolerance=tolerance,
+                                                 max_passes=max_passes)
     out = {
         "deviation_pp": hi[0] - lo[0],
         "deviation_max": hi[0],
@@ -163,14 +143,14 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
     }
     finite = jnp.all(jnp.stack([jnp.isfinite(v) for v in out.values()]))
     out["periodicity"] = residual
-    out["cycles"] = passes + 1
+    out["cycles"] = passes
     out["ok"] = finite & reachable & (residual <= tolerance)
     return out
 
 
 class _Lanes(NamedTuple):
-    """The chord iteration's state: chord passes run, next start state x, residual of the last
-    pass, its extremes (maxima, minima) and reachability."""
+    """The chord iteration's state: cycles run, next start state x, residual of the last
+    cycle, its extremes (maxima, minima) and reachability."""
 
     passes: Array
     x: Array
@@ -180,72 +160,108 @@ class _Lanes(NamedTuple):
     reachable: Array
 
 
-def _chord_pass(cycle: Cycle, chord_matrix: Array, lanes: _Lanes, tables=None,
+def _start(x: Array) -> _Lanes:
+    nan3 = jnp.full(x.shape[:-1] + (3,), jnp.nan)
+    return _Lanes(jnp.zeros(x.shape[:-1], int), x, jnp.full(x.shape[:-1], jnp.inf), nan3, nan3,
+                  jnp.ones(x.shape[:-1], bool))
+
+
+def _chord_pass(cycle: Cycle, solvers, chord_matrix: Array, lanes: _Lanes, tables=None,
                 steps: int | None = None) -> _Lanes:
     """One chord cycle of one sample: integrate from x, record, step x ← x + (I − Φ)⁻¹(F(x) − x).
-    ``tables``, ``steps``: as :func:`cycle_pass`'s, instead of ``cycle.tables``."""
+    ``tables``, ``solvers``, ``steps``: as :func:`cycle_pass`'s; ``tables`` None:
+    ``cycle.tables``."""
     x = lanes.x
     run = cycle_pass(cycle.arm, cycle.downstream, cycle.tables if tables is None else tables,
-                     cycle.period, x, outputs=True, steps=steps)
-    return _Lanes(lanes.passes + 1, x + chord_matrix @ (run.end - x),
+                     cycle.period, x, solvers=solvers, outputs=True, steps=steps)
+    return _Lanes(lanes.passes + 1, x + gl.matmul(chord_matrix, run.end - x),
                   relative_residual(x, run.end), run.maxima, run.minima, run.reachable)
 
 
-def _settle(cycle: Cycle, chord_matrix: Array, x1: Array, *, tolerance: float,
-            max_passes: int):
-    """Chord cycles from x1 until the residual is ≤ ``tolerance`` or ``max_passes`` ran.
+def _solve(cycle: Cycle, *, tolerance: float, max_passes: int):
+    """The chord iteration of one sample from the linearised periodic state, until the residual
+    is ≤ ``tolerance`` or ``max_passes`` cycles ran.
 
     Returns (passes, residual, maxima, minima, reachable) of the last cycle. One sample runs a
     ``lax.while_loop``. A batch (``jax.vmap``, through ``jax.custom_batching.custom_vmap``)
-    does not: a vmapped while loop runs every lane until the slowest has converged (on 256
-    samples of the default box the lanes need 1 to 4 chord cycles, 2.3 on average, and the
-    batch ran 4 for all). Here each round integrates one cycle for W of the lanes still pending
-    (the first W; W = :data:`ROUND_WIDTH`), reading their tables step by step out of the
-    batch's, step-major (copying a round's whole tables first was slower: XLA's CPU backend
-    copies such 5-D arrays slowly), until none is pending: each lane goes through the same
-    cycles as alone, and the batch integrates about the cycles its lanes need, rounded up to
-    whole rounds. Measured (256 samples, one core,
-    nothing else running; ad hoc, 2026-12-02): ``steady_state_metrics`` 5.5 ms per sample,
-    against 8.0 ms with the vmapped while loop and 6.8 ms with the tables copied per round;
-    the metrics equal to 6e-14. W = 32, 64, 128 of 256 lanes (two runs side by side, tables
-    copied): 6.1, 5.4, 6.9 ms; in ``benchmarks/sobol_throughput.py`` (chunks of 256) one
-    device gave 164 samples/s with W = 64 and 135 with 128, two devices of one process (128
-    lanes each) 252 with W = 32 and 273 with 64: 64 lanes is best in both.
+    does not:
+
+    * the linearisation runs with the lanes last (:func:`~jaxdobby.batch.linear.linearise_lanes`)
+      and every pass reads step n of the tables where they are, (batch, N, 3, ...), by a slice
+      (a scan over a batch's tables first copies them step-major, for every pass: half a
+      pass's time);
+    * the first :data:`FULL_CYCLES` cycles run for every lane at once, the rest in rounds: a
+      vmapped while loop would run every lane until the slowest has converged (on 256 samples
+      of the default box the lanes need 2 to 4 cycles); here each round integrates one cycle
+      for W of the lanes still pending (the first W; W = :data:`ROUND_WIDTH`), reading their
+      tables and solvers step by step out of the batch's (a gather per step: a lane's cycle
+      costs ~1.4 times its cycle in a full pass), until none is pending. Each lane goes
+      through the same cycles as alone; the batch integrates about the cycles its lanes need.
+
+    Measured (256 samples of the default design, one core, ad hoc, 2026-12-02, this machine's
+    speed varying ±10 % between runs): 1.5–1.6 ms per sample; 1.7 with every cycle after the
+    first in rounds of 64; W = 32 slightly better than 64 and 128 (1.45–1.8 against
+    1.55–2.3 and 1.6 ms). ``benchmarks/batch_profile.py`` (compiled as ``jaxdobby sobol``
+    compiles, one pinned core, 2026-12-02): prepare 0.37, linearisation 0.29, a full cycle
+    0.31 ms per sample; 1.45 ms per sample in all, W = 32, 64 or 128 alike.
     """
     def pending(lanes):
-        return (lanes.passes < max_passes) & (lanes.residual > tolerance)
-
-    def start(x):
-        nan3 = jnp.full(x.shape[:-1] + (3,), jnp.nan)
-        return _Lanes(jnp.zeros(x.shape[:-1], int), x, jnp.full(x.shape[:-1], jnp.inf), nan3,
-                      nan3, jnp.ones(x.shape[:-1], bool))
+        first = jnp.minimum(FULL_CYCLES, max_passes)
+        return (lanes.passes < first) | ((lanes.passes < max_passes)
+                                         & (lanes.residual > tolerance))
 
     def result(lanes):
         return lanes.passes, lanes.residual, lanes.maxima, lanes.minima, lanes.reachable
 
+    def linearised(c, tables):
+        lin = linearise(c.arm, c.downstream, tables, c.period)
+        eye = jnp.eye(lin.monodromy.shape[0])
+        return lin, eye - lin.monodromy
+
     @custom_vmap
-    def settle(cycle, chord_matrix, x1):
-        return result(jax.lax.while_loop(pending, lambda c: _chord_pass(cycle, chord_matrix, c),
-                                         start(x1)))
+    def solve(cycle):
+        lin, i_phi = linearised(cycle, cycle.tables)
+        chord_matrix = jnp.linalg.inv(i_phi)
+        x = chord_matrix @ lin.rest_response
+        return result(jax.lax.while_loop(
+            pending, lambda c: _chord_pass(cycle, lin.solvers, chord_matrix, c), _start(x)))
 
-    @settle.def_vmap
-    def settle_batch(size, batched, cycle, chord_matrix, x1):
-        cycle, chord_matrix, x1 = jax.tree.map(
-            lambda a, b: a if b else jnp.broadcast_to(a, (size,) + jnp.shape(a)),
-            (cycle, chord_matrix, x1), tuple(batched))
+    @solve.def_vmap
+    def solve_batch(size, batched, cycle):
+        cycle = jax.tree.map(lambda a, b: a if b else jnp.broadcast_to(a, (size,) + jnp.shape(a)),
+                             cycle, batched[0])
         width = min(size, ROUND_WIDTH)
-
-        # the tables step-major, (N, batch, 3, ...): a round reads step n of its lanes from
-        # them (a small gather per step) instead of copying its lanes' whole tables first
-        by_step = jax.tree.map(lambda a: jnp.moveaxis(a, 0, 1), cycle.tables)
         steps = cycle.tables.height.shape[1]
+        tables = cycle.tables  # lane-major, (batch, N, 3, ...)
         rest = eqx.tree_at(lambda c: c.tables, cycle, None)
+
+        lin = linearise_lanes(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
+        i_phi = jnp.eye(lin.monodromy.shape[-1]) - lin.monodromy
+        # one matrix at a time (a batched LAPACK call can deadlock a 2-core CPU: see prepare)
+        chord_matrix = jax.lax.map(jnp.linalg.inv, i_phi)
+        x = jax.vmap(gl.matmul)(chord_matrix, lin.rest_response)
+
+        def full_pass(c, t, s, m, lanes):
+            def table_at(n):
+                return jax.tree.map(lambda a: a[n], t)
+
+            return _chord_pass(c, s, m, lanes, tables=table_at, steps=steps)
+
+        def full_cycle(_, lanes):
+            return jax.vmap(full_pass, in_axes=(0, 0, 1, 0, 0))(rest, tables, lin.solvers,
+                                                                chord_matrix, lanes)
+
+        # a loop, not a Python for: one copy of the pass in the program (compile time)
+        lanes = jax.lax.fori_loop(0, min(FULL_CYCLES, max_passes), full_cycle, _start(x))
 
         def lane_pass(lane, c, m, lanes):
             def table_at(n):
-                return jax.tree.map(lambda a: a[n, lane], by_step)
+                return jax.tree.map(lambda a: a[lane, n], tables)
 
-            return _chord_pass(c, m, lanes, tables=table_at, steps=steps)
+            def solver_at(n):
+                return jax.tree.map(lambda a: a[n, lane], lin.solvers)
+
+            return _chord_pass(c, solver_at, m, lanes, tables=table_at, steps=steps)
 
         def one_round(lanes):
             todo = pending(lanes)
@@ -260,7 +276,7 @@ def _settle(cycle: Cycle, chord_matrix: Array, x1: Array, *, tolerance: float,
 
             return jax.tree.map(put, lanes, new)
 
-        out = result(jax.lax.while_loop(lambda c: jnp.any(pending(c)), one_round, start(x1)))
+        out = result(jax.lax.while_loop(lambda c: jnp.any(pending(c)), one_round, lanes))
         return out, jax.tree.map(lambda _: True, out)
 
-    return settle(cycle, chord_matrix, x1)
+    return solve(cycle)

@@ -7,12 +7,15 @@ method of :mod:`jaxdobby.batch.collocation` on the tables of :mod:`jaxdobby.batc
 1. predicts the stage accelerations by extrapolating the previous step's (a quadratic);
 2. runs two simplified-Newton iterations on the stage equations. The residual is the full
    nonlinear one of :func:`jaxdobby.dobby.equations_at` (the chain in closed form,
-   :func:`jaxdobby.batch.chain.chain_terms`). The matrix is frozen at the middle node: the
-   chain's inertia μ g gᵀ there, K(τ), C(τ) — and, with ``full_jacobian``, the chain's stiffness
-   and damping (forward-mode derivatives in the joint's two displacement and two velocity
-   components). Two iterations leave ≲ 1e-7 of the step's change (tests);
+   :func:`jaxdobby.batch.chain.chain_terms`). The matrix is either given, inverted once per
+   step before the pass (the equations linearised about the rigid motion,
+   :mod:`jaxdobby.batch.linear`: what the batch evaluator uses), or frozen at the middle node of
+   the step's predicted stages: the chain's inertia μ g gᵀ there, K(τ), C(τ) — and, with
+   ``full_jacobian``, the chain's stiffness and damping (forward-mode derivatives in the
+   joint's two displacement and two velocity components). Two iterations (the default) leave
+   a cycle's metrics within ~3e-7 of converged ones (``tests/test_batch.py``);
 3. optionally carries tangent vectors through the linear step map of that frozen matrix (the
-   monodromy matrix for the shooting of :mod:`jaxdobby.batch.steady`);
+   monodromy matrix for the shooting of :mod:`jaxdobby.batch.dense`);
 4. optionally records the heald frame's displacement deviation, velocity deviation and
    acceleration at the three nodes and keeps running maxima and minima, each local extremum of
    the sampled series refined by the parabola through it and its two neighbours (the nodes are
@@ -33,6 +36,7 @@ from jax import Array
 from . import collocation as gl
 from .chain import Downstream, chain_reachable, chain_terms
 from .cycle import ArmTerms, StageTables
+from .linear import chain_jacobian, tangent_step
 
 SIGNALS = ("deviation", "velocity_deviation", "acceleration")
 """The signals whose extremes a pass records, in this order."""
@@ -58,50 +62,20 @@ class PassResult(NamedTuple):
     trajectory: tuple[Array, Array, Array] | None = None
 
 
-def _stored(tree, key):
-    """``tree``, computed once and kept in memory: passed through a ``lax.cond`` on a run-time
-    scalar ``key`` ≥ 0 (always true), whose result XLA must materialise.
-
-    The products of a step are unrolled into elementwise arithmetic
-    (:func:`jaxdobby.batch.collocation.matmul`), and without these boundaries XLA's CPU backend
-    fuses the chain's terms into each of their many small consumers and recomputes them per
-    output element (fusions of ~300 instructions; measured: two passes of 256 samples 40 %
-    slower than with the batched dots they replace). With them the batch evaluator's
-    :func:`~jaxdobby.batch.steady.steady_state_metrics` runs in 7.2 ms per sample against
-    11.7 ms with batched dots (256 samples, one core). ``lax.optimization_barrier`` does not
-    survive to the CPU backend's fusion passes, a conditional does.
-    """
-    return jax.lax.cond(key >= 0, lambda t: t, lambda t: jax.tree.map(jnp.zeros_like, t), tree)
-
-
 def _residuals(arm: ArmTerms, ds: Downstream, st: StageTables, pos, vel, acc, key=None):
     """Stage residuals F − M(Q)A, (3, k), and the chain terms at the three nodes."""
     rows_t = gl.transpose(ds.rows)
     ct = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(ds, st.frame, gl.matmul(pos, rows_t),
                                                         gl.matmul(vel, rows_t))
     if key is not None:
-        ct = _stored(ct, key)
+        ct = gl.stored(ct, key)
     kq = sum(st.stiffness[:, :, j] * pos[:, j, None] for j in range(pos.shape[1]))
     cv = (gl.matmul(vel, gl.transpose(arm.damping))
           + 2.0 * st.frame.omega[:, None] * gl.matmul(vel, gl.transpose(arm.gyroscopic)))
     ga = sum(ct.g[:, j] * acc[:, j] for j in range(acc.shape[1]))
     ma = gl.matmul(acc, gl.transpose(arm.mass)) + (ct.mu * ga)[:, None] * ct.g
     out = (st.force - cv - kq + ct.phi[:, None] * ct.g - ma, ct)
-    return out if key is None else _stored(out, key)
-
-
-def _chain_jacobian(ds: Downstream, frame, u, ud, acc):
-    """∂(g φ − μ g gᵀ a)/∂u and ∂/∂u̇ at one node, each (k, 2)."""
-    def force(uu, uud):
-        ct = chain_terms(ds, frame, uu, uud)
-        return ct.g * ct.phi - ct.mu * ct.g * gl.matmul(ct.g[None], acc)[0]
-
-    eye = jnp.eye(2)
-    zero = jnp.zeros((2, 2))
-    dirs_u = jnp.concatenate([eye, zero])
-    dirs_ud = jnp.concatenate([zero, eye])
-    cols = jax.vmap(lambda a, b: jax.jvp(force, (u, ud), (a, b))[1])(dirs_u, dirs_ud)
-    return gl.transpose(cols[:2]), gl.transpose(cols[2:])
+    return out if key is None else gl.stored(out, key)
 
 
 def _parabola_peaks(t, y):
@@ -123,9 +97,9 @@ def _parabola_peaks(t, y):
 
 
 def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
-               tangents: Array | None = None, full_jacobian: bool = False,
-               outputs: bool = False, record: bool = False, steps: int | None = None
-               ) -> PassResult:
+               solvers=None, tangents: Array | None = None, full_jacobian: bool = False,
+               outputs: bool = False, record: bool = False, steps: int | None = None,
+               iterations: int = 2) -> PassResult:
     """Integrate one cycle from ``x0`` (see the module docstring).
 
     Args:
@@ -135,51 +109,63 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
             = N (to read a lane's tables out of a batch's without copying them first).
         period: T [s].
         x0: initial state (q, q̇), (2k,).
+        solvers: the steps' Newton matrices, inverted once beforehand
+            (:class:`~jaxdobby.batch.collocation.StageSolver` with leading axis N, from
+            :func:`jaxdobby.batch.linear.linearise`), or a function of the step index n
+            returning step n's (with ``tables`` a function too); None: each step builds its own
+            at the middle node of its predicted stages.
         tangents: (2k, m) tangent vectors to carry, or None.
         full_jacobian: include the chain's stiffness and damping in the Newton matrix.
         outputs: record the extremes of :data:`SIGNALS`.
         record: return the trajectory (see :class:`PassResult`).
+        iterations: simplified-Newton iterations per step (static, ≥ 1; the outputs are taken
+            at the stage states of the last one's residual).
     """
+    if iterations < 1:
+        raise ValueError(f"iterations must be at least 1; got {iterations}")
     k = x0.shape[0] // 2
     if callable(tables):
         table_at, n_steps, xs_tables = tables, steps, None
     else:
         table_at, n_steps, xs_tables = None, tables.height.shape[0], tables
+    if solvers is not None and (tangents is not None or full_jacobian):
+        raise ValueError("stored solvers do not carry tangents (see jaxdobby.batch.linear)")
+    solver_at = solvers if callable(solvers) else None
+    xs_solvers = None if callable(solvers) else solvers
     h = period / n_steps
     rows = ds.rows
     m = 0 if tangents is None else tangents.shape[1]
 
     def step(carry, xs):
-        index, st = xs
+        index, st, solver = xs
         if table_at is not None:
             st = table_at(index)
+        if solver_at is not None:
+            solver = solver_at(index)
         q, v, prev, tan, ext = carry
         acc = gl.weigh(gl.EXTRAPOLATE, prev)
-        pos, vel = _stored(gl.stage_states(q, v, acc, h), index)
+        pos, vel = gl.stored(gl.stage_states(q, v, acc, h), index)
         res, ct = _residuals(arm, ds, st, pos, vel, acc, index)
-        mid = jax.tree.map(lambda a: a[1], st)
-        mass = arm.mass + ct.mu[1] * jnp.outer(ct.g[1], ct.g[1])
-        stiff = mid.stiffness
-        damp = arm.damping + 2.0 * mid.frame.omega * arm.gyroscopic
-        if full_jacobian:
-            ju, jud = _chain_jacobian(ds, mid.frame, gl.matmul(rows, pos[1]),
-                                       gl.matmul(rows, vel[1]), acc[1])
-            stiff, damp = _stored((stiff - gl.matmul(ju, rows), damp - gl.matmul(jud, rows)),
-                                  index)
-        solver = _stored(gl.StageSolver(mass, damp, stiff, h), index)
-        acc = _stored(acc + solver.solve(res), index)
-        pos, vel = _stored(gl.stage_states(q, v, acc, h), index)
-        res, ct = _residuals(arm, ds, st, pos, vel, acc, index)
+        if solvers is None:
+            mid = jax.tree.map(lambda a: a[1], st)
+            mass = arm.mass + ct.mu[1] * jnp.outer(ct.g[1], ct.g[1])
+            stiff = mid.stiffness
+            damp = arm.damping + 2.0 * mid.frame.omega * arm.gyroscopic
+            if full_jacobian:
+                ju, jud = chain_jacobian(ds, mid.frame, gl.matmul(rows, pos[1]),
+                                         gl.matmul(rows, vel[1]), acc[1])
+                stiff, damp = gl.stored((stiff - gl.matmul(ju, rows),
+                                       damp - gl.matmul(jud, rows)), index)
+            solver = gl.stored(gl.StageSolver(mass, damp, stiff, h), index)
+        for _ in range(iterations - 1):
+            acc = gl.stored(acc + solver.solve(res), index)
+            pos, vel = gl.stored(gl.stage_states(q, v, acc, h), index)
+            res, ct = _residuals(arm, ds, st, pos, vel, acc, index)
         out_acc = acc
-        acc = _stored(acc + solver.solve(res), index)
+        acc = gl.stored(acc + solver.solve(res), index)
         qn, vn = gl.advance(q, v, acc, h)
         if m:
-            dq, dv = tan[:k], tan[k:]
-            kdq, kdv, cdv = gl.matmul(stiff, dq), gl.matmul(stiff, dv), gl.matmul(damp, dv)
-            rhs = -(cdv + kdq)[None] - h * gl.weigh(gl.NODES[:, None], kdv[None])
-            da = solver.solve(rhs)
-            tan = jnp.concatenate([dq + h * dv + h**2 * gl.weigh(gl.WEIGHTS2, da),
-                                   dv + h * gl.weigh(gl.WEIGHTS, da)])
+            tan = tangent_step(solver, damp, stiff, tan, h)
         if outputs:
             ga = sum(ct.g[:, j] * out_acc[:, j] for j in range(k))
             values = jnp.stack([
@@ -212,7 +198,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
         ext0 = (jnp.full(2, jnp.nan), nan2, nan2, jnp.full(3, -jnp.inf), jnp.full(3, jnp.inf),
                 jnp.array(True))
     (q, v, _, tan, ext), trajectory = jax.lax.scan(step, (q0, v0, prev, tan0, ext0),
-                                                   (jnp.arange(n_steps), xs_tables))
+                                                   (jnp.arange(n_steps), xs_tables, xs_solvers))
     if outputs:
         hist_t, hist_y, head, hi, lo, ok = ext
         # the cycle is periodic: refine the extrema at the seam too
