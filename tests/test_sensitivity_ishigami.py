@@ -127,6 +127,28 @@ def test_one_trace_and_one_compile_for_many_chunks():
     assert len(traces) == 1 and len(compiles) == 1
 
 
+def test_cpu_compiler_options_and_their_fallback(monkeypatch):
+    # The per-chunk program is compiled with XLA's loop emitters on CPUs (a speed setting):
+    # the same float64 numbers as the default emitters (round-off: atol 1e-12 as above), and a
+    # jaxlib that does not know an option compiles without it instead of failing.
+    from jaxdobby.sensitivity import batch as batch_module
+
+    space = ParameterSpace.from_names(["x1", "x2", "x3"], ISHIGAMI.parameters)
+    x = space.sample(256, second_order=False, seed=2)
+
+    def model(row):
+        return {"y": ishigami(row)}
+
+    with_options = evaluate(model, x, chunk_size=CHUNK).outputs["y"]
+    plain = np.asarray(jax.jit(jax.vmap(model))(jnp.asarray(x))["y"])
+    np.testing.assert_allclose(with_options, plain, rtol=0, atol=1e-12)
+    monkeypatch.setattr(batch_module, "CPU_COMPILER_OPTIONS", {"xla_cpu_no_such_option": False})
+    batch_module._compile.cache_clear()
+    fallback = evaluate(model, x, chunk_size=CHUNK).outputs["y"]
+    np.testing.assert_allclose(fallback, plain, rtol=0, atol=1e-12)
+    batch_module._compile.cache_clear()
+
+
 def failing_model(bad_nan, bad_status):
     """Ishigami, NaN on one given row and ok=False on another (rows matched by their values)."""
 

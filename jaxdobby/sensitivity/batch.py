@@ -118,9 +118,33 @@ def _compile(model: Callable, chunk_size: int, dim: int, devices: tuple[jax.Devi
                             check_vma=False)
     sharding = NamedSharding(mesh, spec)
     arg = jax.ShapeDtypeStruct((chunk_size, dim), jnp.float64, sharding=sharding)
-    compiled = jax.jit(sharded).lower(arg).compile()
+    compiled = compile_for(jax.jit(sharded).lower(arg), devices)
     _check_outputs(compiled.out_info, chunk_size)
     return compiled, sharding
+
+
+CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+"""XLA options of the per-chunk program on CPU devices: fusions compiled by XLA's loop
+emitters rather than its newer MLIR fusion emitters. On the dobby's batch program (the
+collocation passes: many small elementwise fusions per step) measured faster and quicker to
+compile (2-core AMD EPYC, jax 0.10.2, 2026-12-02, 256 samples on one pinned core, best of 4,
+interleaved: 1.33–1.42 against 1.52–1.70 ms per sample; two devices of one process: 1250
+against 840–1010 samples/s; again later that day, one compile of each: 1.48 against
+1.67 ms per sample, compiled in 14 s against 27 s, metrics equal to 1.4e-13 relative); the
+numbers are float64 either way (only the generated loops differ, so round-off may). A jaxlib
+without the option compiles without it."""
+
+
+def compile_for(lowered, devices: Sequence[jax.Device]):
+    """``lowered.compile()``, with :data:`CPU_COMPILER_OPTIONS` when every device is a CPU and
+    this jaxlib knows them."""
+    if all(d.platform == "cpu" for d in devices):
+        try:
+            return lowered.compile(compiler_options=CPU_COMPILER_OPTIONS)
+        except jax.errors.JaxRuntimeError as err:
+            if "compile option" not in str(err):
+                raise
+    return lowered.compile()
 
 
 def _check_outputs(out_info, chunk_size: int) -> None:
