@@ -1,17 +1,20 @@
 """Where one chunk of the dobby's batch evaluation spends its time (issue 4).
 
 Times, jitted over ``jax.vmap`` of one chunk of rows of the default Sobol design (one CPU
-device, compile time apart, best of ``--repeats``), per sample:
+device, compile time apart, best of ``--repeats``), per sample, each part including the ones
+before it, as :func:`jaxdobby.batch.steady_state_metrics` runs them:
 
-* ``prepare``: the model of each sample (finite elements, modal reduction, tables, static
-  equilibrium; :func:`jaxdobby.batch.steady.prepare`);
-* ``prepare + tangent pass``: with the first cycle and its 2k tangents (the chord matrix);
-* ``prepare + chord pass``: with one cycle recording the extremes;
+* ``prepare``: the model of each sample (finite elements, modal reduction, tables), one sample
+  at a time (:func:`jaxdobby.batch.steady.prepare` under ``sequential_vmap``);
+* ``+ linearise``: the frozen Newton matrices, monodromy matrix and linear periodic response
+  of every lane (:func:`jaxdobby.batch.linear.linearise_lanes`, as the batch runs it);
+* ``+ one cycle``: one cycle of every lane with the extremes, reading the lanes' tables where
+  they are (as the batch's full cycles do);
 * ``steady_state_metrics``: everything, for each number of lanes per round of the chord
   iteration in ``--widths`` (:data:`jaxdobby.batch.steady.ROUND_WIDTH`).
 
 It also reports how many cycles the lanes needed: a vmapped while loop would integrate
-(chunk × the slowest lane's chord cycles), the rounds about the sum of the lanes' own.
+(chunk × the slowest lane's cycles), the rounds about the sum of the lanes' own.
 
 Run (alone on the machine; ``taskset -c 0`` pins it to one core):
     PYTHONPATH=. python benchmarks/batch_profile.py [--chunk 256] [--quick]
@@ -51,53 +54,65 @@ def main(argv=None) -> int:
     jax = configure_jax()
     import equinox as eqx
     import jax.numpy as jnp
+    from jax.custom_batching import sequential_vmap
 
     from jaxdobby.batch import steady
+    from jaxdobby.batch.linear import linearise_lanes
     from jaxdobby.batch.stepper import cycle_pass
-    from jaxdobby.parameters import Setup, apply
+    from jaxdobby.parameters import Setup
     from jaxdobby.sensitivity import DOBBY, ParameterSpace
-    from jaxdobby.stroke import arc_length_for_stroke
+    from jaxdobby.sensitivity.batch import compile_for
+    from jaxdobby.sensitivity.dobby import setup_of_row
 
     space = ParameterSpace.from_names(DOBBY.default_names, DOBBY.parameters)
     rows = jnp.asarray(space.sample(1024, second_order=True, seed=0)[: args.chunk])
     start = Setup()
-
-    def setup_of(x):  # as jaxdobby.sensitivity.dobby's model (strokes in range here)
-        values = {n: x[i] * f for i, (n, f) in enumerate(zip(space.names, space.si_scales))}
-        target = values.pop("stroke")
-        setup = apply(start, values)
-        s = arc_length_for_stroke(setup.machine.chain, target, check=False)
-        return eqx.tree_at(lambda u: u.machine, setup, setup.machine.with_link11_arc_length(s))
-
     kw = {} if steps is None else {"steps": steps}
 
-    def prepare(x):
-        return steady.prepare(setup_of(x), **kw)
+    def setup_of(x):
+        return setup_of_row(start, space.names, space.si_scales, x)[0]
 
-    def tangent(x):
-        c = prepare(x)
-        k = c.arm.mass.shape[0]
-        run = cycle_pass(c.arm, c.downstream, c.tables, c.period, c.rest,
-                         tangents=jnp.eye(2 * k), full_jacobian=True)
-        return run.end, run.tangents
+    def prepared(x):
+        dynamic, static = eqx.partition(setup_of(x), eqx.is_array)
+        return sequential_vmap(lambda d: steady.prepare(eqx.combine(d, static), **kw))(dynamic)
 
-    def chord(x):
-        c = prepare(x)
-        run = cycle_pass(c.arm, c.downstream, c.tables, c.period, c.rest, outputs=True)
-        return run.end, run.maxima
+    def batch_prepare(xs):
+        return jax.vmap(prepared)(xs)
 
-    def metrics(x):
-        return steady.steady_state_metrics(setup_of(x), **kw)
+    def batch_linearise(xs):
+        # as steady._solve's batch rule: the lanes' tables lane-major, linearised lanes last
+        cycle = batch_prepare(xs)
+        lin = linearise_lanes(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
+        return cycle, lin
+
+    def batch_cycle(xs):
+        cycle, lin = batch_linearise(xs)
+        tables = cycle.tables
+        rest = eqx.tree_at(lambda c: c.tables, cycle, None)
+        n_steps = tables.height.shape[1]
+
+        def one(c, t, s, x):
+            run = cycle_pass(c.arm, c.downstream, lambda n: jax.tree.map(lambda a: a[n], t),
+                             c.period, x, solvers=s, outputs=True, steps=n_steps)
+            return run.end, run.maxima
+
+        # the start state here: the linear response d itself (the solve uses (I − Φ)⁻¹d; the
+        # cost of a cycle does not depend on where it starts)
+        return jax.vmap(one, in_axes=(0, 0, 1, 0))(rest, tables, lin.solvers, lin.rest_response)
+
+    def batch_metrics(xs):
+        return jax.vmap(lambda x: steady.steady_state_metrics(setup_of(x), **kw))(xs)
 
     def per_sample(fn):
-        g = jax.jit(jax.vmap(fn))
+        # compiled as jaxdobby.sensitivity.evaluate compiles a chunk (its CPU options)
+        g = compile_for(jax.jit(fn).lower(rows), jax.devices()[:1])
         jax.block_until_ready(g(rows))
         t = timed(lambda: jax.block_until_ready(g(rows)), repeats=args.repeats)
         return t["min_s"] / args.chunk * 1e3, t["value"]
 
     parts = {}
-    for name, fn in [("prepare", prepare), ("prepare + tangent pass", tangent),
-                     ("prepare + chord pass", chord)]:
+    for name, fn in [("prepare", batch_prepare), ("+ linearise", batch_linearise),
+                     ("+ one cycle", batch_cycle)]:
         parts[name], _ = per_sample(fn)
         print(f"{name}: {parts[name]:.3f} ms per sample", flush=True)
     full, cycles = {}, None
@@ -105,28 +120,27 @@ def main(argv=None) -> int:
     try:
         for width in args.widths:
             steady.ROUND_WIDTH = width
-            full[width], out = per_sample(metrics)
+            full[width], out = per_sample(batch_metrics)
             cycles = np.asarray(out["cycles"])
             print(f"steady_state_metrics, {width} lanes per round: {full[width]:.3f} ms per "
                   "sample", flush=True)
     finally:
         steady.ROUND_WIDTH = default
-    chords = cycles - 1
     result = {"benchmark": "batch_profile", "quick": args.quick, "environment": environment(),
               "chunk": args.chunk, "per_sample_ms": parts,
               "steady_state_metrics_ms": {str(k): v for k, v in full.items()},
               "cycles_histogram": np.bincount(cycles).tolist(),
-              "chord_cycles_needed": int(chords.sum()),
-              "chord_cycles_vmapped_while": int(args.chunk * chords.max())}
+              "cycles_needed": int(cycles.sum()),
+              "cycles_vmapped_while": int(args.chunk * cycles.max())}
     lines = [f"One chunk of {args.chunk} rows of the default design, one device, per sample:", "",
              "| part | ms per sample |", "|---|---|"]
     lines += [f"| {k} | {v:.2f} |" for k, v in parts.items()]
     lines += [f"| steady_state_metrics, {k} lanes per round | {v:.2f} |"
               for k, v in full.items()]
-    lines += ["", "Cycles per sample (tangent cycle included): "
+    lines += ["", "Cycles per sample: "
               + ", ".join(f"{c}: {n}" for c, n in enumerate(result["cycles_histogram"]) if n)
-              + f". Chord cycles the lanes need: {result['chord_cycles_needed']}; a vmapped "
-              f"while loop would integrate {result['chord_cycles_vmapped_while']}."]
+              + f". Cycles the lanes need: {result['cycles_needed']}; a vmapped "
+              f"while loop would integrate {result['cycles_vmapped_while']}."]
     result["markdown"] = "\n".join(lines) + "\n"
     name = "batch_profile_quick" if args.quick else "batch_profile"
     write_json(Path(args.out) / f"{name}.json", finish(result))

@@ -76,7 +76,7 @@ def test_scipy_steady_state_matches_adaptive_jaxdobby():
     model = build_model(machine, operating)
     numpy_model = NumpyDobby.from_model(model)
     run = steady_state(jitted_problem(model, numpy_model), "DOP853", 1e-10, 1e-14,
-                       np.asarray(ref.series.t), tolerance=1e-8, strategy="newton")
+                       np.asarray(ref.series.t), tolerance=1e-7, strategy="newton")
     assert run.converged
     expected = {m: float(ref.metrics[m]) for m in METRICS}
     assert metric_error(run.metrics, expected) < 1e-5, (run.metrics, expected)
@@ -174,4 +174,4 @@ def test_batch_profile_quick(tmp_path):
     assert all(v > 0 for v in data["per_sample_ms"].values())
     assert sum(data["cycles_histogram"]) == data["chunk"] == 8
     # the rounds integrate at most what a vmapped while loop would
-    assert data["chord_cycles_needed"] <= data["chord_cycles_vmapped_while"]
+    assert data["cycles_needed"] <= data["cycles_vmapped_while"]

@@ -67,21 +67,7 @@ def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
         check_strokes(space, start)
 
         def model(x):
-            values = {n: x[i] * scales[i] for i, n in enumerate(names)}
-            target = values.pop("stroke", None)
-            setup = apply(start, values)
-            ok = jnp.array(True)
-            if target is not None:
-                # A stroke the slot cannot give (possible when the linkage is sampled too) is a
-                # failed sample, not a run-time error that would stop the whole batch: solve
-                # for the nearest reachable stroke and flag the sample. (No eqx.error_if in
-                # the batch: host callbacks can stall programs sharded over CPU devices.)
-                chain = setup.machine.chain
-                lo, hi = stroke_range(chain)
-                ok = (target >= lo) & (target <= hi)
-                s = arc_length_for_stroke(chain, jnp.clip(target, lo, hi), check=False)
-                setup = eqx.tree_at(lambda u: u.machine, setup,
-                                    setup.machine.with_link11_arc_length(s))
+            setup, ok = setup_of_row(start, names, scales, x)
             out = steady_state_metrics(setup, steps=steps, tolerance=tolerance)
             metrics = {name: out[key] * factor for key, (name, factor) in METRIC_UNITS.items()}
             metrics["ok"] = out["ok"] & ok
@@ -90,6 +76,28 @@ def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
         return model
 
     return build
+
+
+def setup_of_row(base: Setup, names, scales, x):
+    """The machine and operating point of one sample row: ``base`` with the row's values (users'
+    units, times ``scales`` to SI) of the parameters ``names``, a stroke set through the
+    link-11 joint's arc length on the slot (:func:`jaxdobby.stroke.arc_length_for_stroke`).
+    Returns (setup, ok): ok is False for a stroke the slot cannot give (possible when the
+    linkage is sampled too), which is then replaced by the nearest reachable one (a failed
+    sample, not a run-time error that would stop the whole batch; no ``eqx.error_if`` in the
+    batch: host callbacks can stall programs sharded over CPU devices). Jittable, vmappable.
+    """
+    values = {n: x[i] * scales[i] for i, n in enumerate(names)}
+    target = values.pop("stroke", None)
+    setup = apply(base, values)
+    ok = jnp.array(True)
+    if target is not None:
+        chain = setup.machine.chain
+        lo, hi = stroke_range(chain)
+        ok = (target >= lo) & (target <= hi)
+        s = arc_length_for_stroke(chain, jnp.clip(target, lo, hi), check=False)
+        setup = eqx.tree_at(lambda u: u.machine, setup, setup.machine.with_link11_arc_length(s))
+    return setup, ok
 
 
 def check_strokes(space: ParameterSpace, base: Setup) -> None:
