@@ -4,15 +4,14 @@ Measures, on this machine, float64, compile time apart:
 
 * samples per second of :data:`jaxdobby.sensitivity.DOBBY` (steady-state metrics of the coupled
   model, :func:`jaxdobby.batch.steady_state_metrics`) over rows of the default problem's Sobol
-  design, in chunks of ``--chunk`` rows, in 1 and in 2 concurrent processes of one CPU device
-  each (each its share of the rows, timing started together after all have compiled), median
-  of ``--repeats`` timed passes;
+  design, in chunks of ``--chunk`` rows: in 1 and in 2 concurrent processes of one CPU device
+  each (each its share of the rows, timing started together after all have compiled), and in
+  one process of 2 CPU devices (``shard_map``, what a plain ``jaxdobby sobol`` does on a 2-core
+  machine); median of ``--repeats`` timed passes;
 * the wall time of the whole default study, ``jaxdobby sobol --n 1024 --second-order``
-  (10 240 runs, analysis and figures included), in 2 processes joined by ``jax.distributed``.
-
-Why processes and not ``--xla_force_host_platform_device_count=2``: on this 2-core machine the
-dobby's program sharded over two host devices stalls in XLA's CPU runtime (no progress, 0 % CPU;
-the Ishigami test model shards fine), while two processes of one device each scale.
+  (10 240 runs, analysis and figures included): in one process without a compilation cache,
+  again with the command line's persistent cache filled by a previous run (what a user's
+  second study of the same problem costs), and in 2 processes joined by ``jax.distributed``;
 * with ``--accuracy``: the largest relative error of each metric at the 16 corners of the
   default box against the adaptive reference (``jaxdobby.simulate(method="adaptive")``,
   rtol 1e-8), the accuracy the throughput is measured at.
@@ -77,11 +76,11 @@ def worker(args) -> dict:
     return out
 
 
-def _env(devices: int = 1) -> dict:
+def _env(devices: int = 1, cache: str = "off") -> dict:
     """Environment of a child process with ``devices`` CPU devices (0: the CLI's default, one
-    per core)."""
+    per core) and the command line's compilation cache at ``cache`` ("off": none)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-               JAXDOBBY_CACHE_DIR="off")
+               JAXDOBBY_CACHE_DIR=cache)
     env.pop("XLA_FLAGS", None)
     if devices:
         env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}"
@@ -124,9 +123,10 @@ def in_processes(processes: int, args, devices: int = 1) -> dict:
             "failed": sum(r["failed"] for r in runs)}
 
 
-def default_study(processes: int) -> dict:
+def default_study(processes: int, cache: str = "off") -> dict:
     """Wall time of `jaxdobby sobol --n 1024 --second-order` in ``processes`` processes joined
-    by jax.distributed on localhost (compilation, analysis and figures included)."""
+    by jax.distributed on localhost (compilation, analysis and figures included), with the
+    compilation cache at ``cache`` ("off": none)."""
     import socket
 
     with socket.socket() as sock:
@@ -138,7 +138,7 @@ def default_study(processes: int) -> dict:
         if processes > 1:
             cmd += ["--coordinator", f"localhost:{port}", "--num-processes", str(processes)]
         t0 = time.perf_counter()
-        env = _env(1) if processes > 1 else _env(0)
+        env = _env(1, cache) if processes > 1 else _env(0, cache)
         procs = [subprocess.Popen(cmd + (["--process-id", str(i)] if processes > 1 else []),
                                   env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                   text=True) for i in range(processes)]
@@ -150,7 +150,15 @@ def default_study(processes: int) -> dict:
     indices = json.loads(outs[0][0])
     st = indices["metrics"]["deviation_pp_mm"]["ST"]
     return {"processes": processes, "rows": 10240, "study_wall_s": wall,
-            "study_ST_deviation_pp": st}
+            "cache": "off" if cache == "off" else "filled", "study_ST_deviation_pp": st}
+
+
+def cached_study() -> dict:
+    """:func:`default_study` in one process with a persistent compilation cache that a first,
+    untimed run of the same study filled."""
+    with tempfile.TemporaryDirectory() as cache:
+        default_study(1, cache)
+        return default_study(1, cache)
 
 
 def accuracy() -> dict:
@@ -191,10 +199,12 @@ def markdown(result: dict) -> str:
         lines.append(f"| {r['processes']} × {r['devices']} | {r['rows']} | {r['chunk']} | "
                      f"{r['samples_per_s']:.0f} | {r['compile_s']:.1f} | {r['failed']} |")
     for r in result.get("studies", []):
+        cache = ("with the persistent compilation cache filled by a previous run"
+                 if r.get("cache") == "filled" else "no compilation cache")
         lines.append("")
         lines.append(f"Default study (`jaxdobby sobol --n 1024 --second-order`, {r['rows']} runs) "
-                     f"in {r['processes']} process(es): **{r['study_wall_s']:.0f} s** wall, "
-                     f"compilation and analysis included.")
+                     f"in {r['processes']} process(es), {cache}: **{r['study_wall_s']:.0f} s** "
+                     "wall, compilation (or loading it), analysis and figures included.")
     if "accuracy" in result:
         errs = ", ".join(f"{k} {v:.1e}" for k, v in result["accuracy"]["max_relative_error"].items())
         lines.append("")
@@ -242,7 +252,7 @@ def main(argv=None):
               "runs": [in_processes(p, args) for p in args.processes]
               + [in_processes(1, args, d) for d in args.devices_list if d > 1]}
     if args.study:
-        result["studies"] = [default_study(1)] + (
+        result["studies"] = [default_study(1), cached_study()] + (
             [default_study(max(args.processes))] if max(args.processes) > 1 else [])
     if args.accuracy:
         result["accuracy"] = accuracy()
