@@ -92,19 +92,27 @@ def test_gauss_collocation_is_sixth_order_on_a_forced_damped_oscillator():
     assert 50.0 < abs(e1 / e2) < 70.0
 
 
+def random_stage_system(stiffness_diagonal, seed=3):
+    """A random k = 4 system for the stage-solver tests: symmetric positive definite M, damping
+    with a skew (gyroscopic) part, K = the given diagonal plus small random coupling."""
+    rng = np.random.default_rng(seed)
+    k = len(stiffness_diagonal)
+    b = rng.normal(size=(k, k))
+    mass = b @ b.T + k * np.eye(k)
+    skew = rng.normal(size=(k, k))
+    damp = 30.0 * np.eye(k) + 5.0 * (skew - skew.T)
+    stiff = np.diag(stiffness_diagonal) + 1e4 * rng.normal(size=(k, k))
+    return rng, mass, damp, stiff
+
+
 def test_stage_solver_solves_the_assembled_stage_system():
     """StageSolver (Butcher-diagonalised blocks, inverted once) against numpy's LU solve of the
     assembled 3k × 3k matrix I⊗M + h a⊗C + h² a²⊗K, for a random k = 4 system with a symmetric
     positive definite M, a damping with a skew (gyroscopic) part and the step of the default
     machine at 1200 r/min; one and eight right-hand sides. Tolerance 1e-12 relative: both are
     backward stable on a matrix of condition ~10, so they agree to a few ulps times that."""
-    rng = np.random.default_rng(3)
     k, h = 4, 0.1 / 432
-    b = rng.normal(size=(k, k))
-    mass = b @ b.T + k * np.eye(k)
-    skew = rng.normal(size=(k, k))
-    damp = 30.0 * np.eye(k) + 5.0 * (skew - skew.T)
-    stiff = np.diag([4e5, 2e6, 8e6, 2e7]) + 1e4 * rng.normal(size=(k, k))
+    rng, mass, damp, stiff = random_stage_system([4e5, 2e6, 8e6, 2e7])
     a = gl.MATRIX
     big = np.kron(np.eye(3), mass) + h * np.kron(a, damp) + h * h * np.kron(a @ a, stiff)
     solver = gl.StageSolver(jnp.asarray(mass), jnp.asarray(damp), jnp.asarray(stiff), h)
@@ -128,13 +136,8 @@ def test_step_map_is_the_stagewise_tangent_step():
     matrix: agreement to round-off, 1e-13 relative."""
     from jaxdobby.batch.linear import step_map, tangent_step
 
-    rng = np.random.default_rng(3)
     k, h = 4, 0.15 / 432
-    b = rng.normal(size=(k, k))
-    mass = b @ b.T + k * np.eye(k)
-    skew = rng.normal(size=(k, k))
-    damp = 30.0 * np.eye(k) + 5.0 * (skew - skew.T)
-    stiff = np.diag([4e5, 8e8, 1.3e9, 3.6e9]) + 1e4 * rng.normal(size=(k, k))
+    _, mass, damp, stiff = random_stage_system([4e5, 8e8, 1.3e9, 3.6e9])
     solver = gl.StageSolver(*(jnp.asarray(m) for m in (mass, damp, stiff)), h)
     psi = step_map(solver, jnp.asarray(damp), jnp.asarray(stiff), h)
     want = tangent_step(solver, jnp.asarray(damp), jnp.asarray(stiff), jnp.eye(2 * k), h)
