@@ -127,7 +127,6 @@ def step_map(solver: gl.StageSolver, damp, stiff, h):
     j = 2 gives the conjugate). k matrix products of k × k per block instead of a 2k-column
     stage solve.
     """
-    k = stiff.shape[0]
     eye = gl.identity_like(stiff)
     p0, q0 = gl.matmul(solver.real, stiff), gl.matmul(solver.real, damp)
     pr = gl.matmul(solver.cre, stiff)
@@ -141,7 +140,7 @@ def step_map(solver: gl.StageSolver, damp, stiff, h):
 
     s, r, al, be = _SIGMA, _RHO, _ALPHA, _BETA
     # columns acting on δq: σP; on δv: σQ + hρP (per block, complex for j = 1)
-    on_q0, on_q1r, on_q1i = s[0].real * p0, None, None
+    on_q0 = s[0].real * p0
     c1 = s[1]
     on_q1r, on_q1i = c1.real * pr - c1.imag * pi, c1.real * pi + c1.imag * pr
     d1 = h * r[1]

@@ -202,26 +202,21 @@ def _solve(cycle: Cycle, *, tolerance: float, max_passes: int):
     speed varying ±10 % between runs): 1.5–1.6 ms per sample; 1.7 with every cycle after the
     first in rounds of 64; W = 32 slightly better than 64 and 128 (1.45–1.8 against
     1.55–2.3 and 1.6 ms). ``benchmarks/batch_profile.py`` (compiled as ``jaxdobby sobol``
-    compiles, one pinned core, 2026-12-02): prepare 0.37, linearisation 0.29, a full cycle
-    0.31 ms per sample; 1.45 ms per sample in all, W = 32, 64 or 128 alike.
+    compiles, one pinned core, 2026-12-02, ``results/batch_profile.json``): prepare 0.34,
+    linearisation 0.26, a full cycle 0.36 ms per sample; 1.44–1.46 ms per sample in all,
+    W = 32, 64 or 128 alike.
     """
     def pending(lanes):
-        first = jnp.minimum(FULL_CYCLES, max_passes)
-        return (lanes.passes < first) | ((lanes.passes < max_passes)
+        return (lanes.passes < min(FULL_CYCLES, max_passes)) | ((lanes.passes < max_passes)
                                          & (lanes.residual > tolerance))
 
     def result(lanes):
         return lanes.passes, lanes.residual, lanes.maxima, lanes.minima, lanes.reachable
 
-    def linearised(c, tables):
-        lin = linearise(c.arm, c.downstream, tables, c.period)
-        eye = jnp.eye(lin.monodromy.shape[0])
-        return lin, eye - lin.monodromy
-
     @custom_vmap
     def solve(cycle):
-        lin, i_phi = linearised(cycle, cycle.tables)
-        chord_matrix = jnp.linalg.inv(i_phi)
+        lin = linearise(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
+        chord_matrix = jnp.linalg.inv(jnp.eye(lin.monodromy.shape[0]) - lin.monodromy)
         x = chord_matrix @ lin.rest_response
         return result(jax.lax.while_loop(
             pending, lambda c: _chord_pass(cycle, lin.solvers, chord_matrix, c), _start(x)))
