@@ -11,7 +11,7 @@ accelerations Aᵢ ≈ q̈(t_n + cᵢh):
 The stage equations are solved by simplified Newton iterations with one matrix per step,
 M̄ + h a⊗C̄ + h² a²⊗K̄ (3k × 3k). Diagonalising the Butcher matrix a = T Λ T⁻¹ (one real
 eigenvalue, one complex pair) splits it into a real k × k system M̄ + hγC̄ + h²γ²K̄ and a
-complex one (Butcher 1976; Hairer & Wanner §IV.8), both inverted here by Gaussian elimination
+complex one (Butcher 1976; Hairer & Wanner §IV.8), both inverted here by Gauss–Jordan elimination
 without pivoting (once per step, see :class:`StageSolver`): their real parts are M̄ plus small
 multiples of C̄ and K̄, symmetric positive definite up to the small gyroscopic terms, for which
 Gaussian elimination without pivoting is stable (Higham, *Accuracy and Stability of Numerical
@@ -148,68 +148,50 @@ def transpose(a) -> Array:
     return jnp.swapaxes(a, 0, 1)
 
 
-def lu(a: Array):
-    """LU factors (unit lower, upper) of a real (k, k) matrix without pivoting, as one array with
-    the multipliers below the diagonal and the reciprocal of U's diagonal on it."""
+def inverse(a: Array) -> Array:
+    """The inverse of a real (k, k, …) matrix (any trailing lane axes) by Gauss–Jordan
+    elimination without pivoting (see the module docstring for why no pivoting is needed).
+
+    Each of the k eliminations is one rank-one update of the whole matrix and of the growing
+    inverse, M ← M − c ⊗ r with r the pivot row divided by the pivot and c the pivot column
+    less the unit vector (which turns the pivot row into r): k array operations on k × k
+    arrays, so the traced program grows linearly with k (an elimination unrolled into scalar
+    operations grows as k³: 16 modes did not compile in 400 s).
+    """
     k = a.shape[0]
-    m = [[a[i, j] for j in range(k)] for i in range(k)]
+    eye = jnp.broadcast_to(identity_like(a), a.shape)
+    m, inv = a, eye
     for p in range(k):
-        inv = 1.0 / m[p][p]
-        m[p][p] = inv
-        for i in range(p + 1, k):
-            m[i][p] = m[i][p] * inv
-            for j in range(p + 1, k):
-                m[i][j] = m[i][j] - m[i][p] * m[p][j]
-    return jnp.stack([jnp.stack(row) for row in m])
+        scale = 1.0 / m[p, p]
+        column = m[:, p] - eye[:, p]
+        row, inv_row = m[p] * scale, inv[p] * scale
+        m = m - column[:, None] * row[None]
+        inv = inv - column[:, None] * inv_row[None]
+    return inv
 
 
-def lu_solve(f: Array, b: Array) -> Array:
-    """Solve with :func:`lu` factors; ``b`` is (k,) or (k, m)."""
-    k = f.shape[0]
-    y = [b[i] for i in range(k)]
-    for i in range(k):
-        for j in range(i):
-            y[i] = y[i] - f[i, j] * y[j]
-    for i in reversed(range(k)):
-        for j in range(i + 1, k):
-            y[i] = y[i] - f[i, j] * y[j]
-        y[i] = y[i] * f[i, i]
-    return jnp.stack(y)
+def complex_inverse(re: Array, im: Array) -> tuple[Array, Array]:
+    """:func:`inverse` of the complex matrix re + i·im, as (real, imaginary) parts."""
+    eye = jnp.broadcast_to(identity_like(re), re.shape)
+    mr, mi, ir, ii = re, im, eye, jnp.zeros_like(re)
+    for p in range(re.shape[0]):
+        norm = mr[p, p] ** 2 + mi[p, p] ** 2
+        sr, si = mr[p, p] / norm, -mi[p, p] / norm  # 1 / pivot
+        cr, ci = mr[:, p] - eye[:, p], mi[:, p]
+        rows = []
+        for ar, ai in ((mr[p], mi[p]), (ir[p], ii[p])):
+            rows.append((ar * sr - ai * si, ar * si + ai * sr))
+        (rr, ri), (jr, ji) = rows
+        mr, mi = (mr - (cr[:, None] * rr[None] - ci[:, None] * ri[None]),
+                  mi - (cr[:, None] * ri[None] + ci[:, None] * rr[None]))
+        ir, ii = (ir - (cr[:, None] * jr[None] - ci[:, None] * ji[None]),
+                  ii - (cr[:, None] * ji[None] + ci[:, None] * jr[None]))
+    return ir, ii
 
 
-def clu(re: Array, im: Array):
-    """:func:`lu` for the complex matrix re + i·im, returned as (real, imaginary) parts."""
-    k = re.shape[0]
-    mr = [[re[i, j] for j in range(k)] for i in range(k)]
-    mi = [[im[i, j] for j in range(k)] for i in range(k)]
-    for p in range(k):
-        norm = mr[p][p] ** 2 + mi[p][p] ** 2
-        ir, ii = mr[p][p] / norm, -mi[p][p] / norm
-        mr[p][p], mi[p][p] = ir, ii
-        for i in range(p + 1, k):
-            lr = mr[i][p] * ir - mi[i][p] * ii
-            li = mr[i][p] * ii + mi[i][p] * ir
-            mr[i][p], mi[i][p] = lr, li
-            for j in range(p + 1, k):
-                mr[i][j] = mr[i][j] - (lr * mr[p][j] - li * mi[p][j])
-                mi[i][j] = mi[i][j] - (lr * mi[p][j] + li * mr[p][j])
-    return (jnp.stack([jnp.stack(row) for row in mr]), jnp.stack([jnp.stack(row) for row in mi]))
-
-
-def clu_solve(fr: Array, fi: Array, br: Array, bi: Array):
-    """Solve with :func:`clu` factors for the right-hand side br + i·bi ((k,) or (k, m))."""
-    k = fr.shape[0]
-    yr, yi = [br[i] for i in range(k)], [bi[i] for i in range(k)]
-    for i in range(k):
-        for j in range(i):
-            yr[i], yi[i] = (yr[i] - (fr[i, j] * yr[j] - fi[i, j] * yi[j]),
-                            yi[i] - (fr[i, j] * yi[j] + fi[i, j] * yr[j]))
-    for i in reversed(range(k)):
-        for j in range(i + 1, k):
-            yr[i], yi[i] = (yr[i] - (fr[i, j] * yr[j] - fi[i, j] * yi[j]),
-                            yi[i] - (fr[i, j] * yi[j] + fi[i, j] * yr[j]))
-        yr[i], yi[i] = (yr[i] * fr[i, i] - yi[i] * fi[i, i], yr[i] * fi[i, i] + yi[i] * fr[i, i])
-    return jnp.stack(yr), jnp.stack(yi)
+def solve(a: Array, b: Array) -> Array:
+    """Solve a x = b for a real (k, k) matrix and b (k,) or (k, m), by :func:`inverse`."""
+    return matmul(inverse(a), b)
 
 
 @jax.tree_util.register_pytree_node_class
@@ -217,8 +199,8 @@ class StageSolver:
     """The simplified-Newton matrix of one step, inverted: solves
     (I⊗M + h a⊗C + h² a²⊗K) x = r for stage right-hand sides r of shape (3, k) or (3, k, m).
 
-    The real and the complex k × k blocks are inverted once per step (from their LU factors;
-    Gaussian elimination without pivoting, see the module docstring) and every solve is then a
+    The real and the complex k × k blocks are inverted once per step (Gauss–Jordan
+    elimination without pivoting, :func:`inverse`) and every solve is then a
     product with the inverses: the step solves three or four right-hand sides with the same
     matrix, and a product is one short fused loop where a triangular substitution chains k
     dependent rows.
@@ -226,12 +208,11 @@ class StageSolver:
 
     def __init__(self, mass, damping, stiffness, h):
         g, lam = GAMMA, LAMBDA
-        eye = jnp.broadcast_to(identity_like(mass), mass.shape)
-        self.real = lu_solve(lu(mass + h * g * damping + (h * g) ** 2 * stiffness), eye)
+        self.real = inverse(mass + h * g * damping + (h * g) ** 2 * stiffness)
         l2 = lam * lam
         re = mass + h * lam.real * damping + h * h * l2.real * stiffness
         im = h * lam.imag * damping + h * h * l2.imag * stiffness
-        self.cre, self.cim = clu_solve(*clu(re, im), eye, jnp.zeros_like(eye))
+        self.cre, self.cim = complex_inverse(re, im)
 
     def tree_flatten(self):
         return (self.real, self.cre, self.cim), None

@@ -189,7 +189,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
     first = jax.tree.map(lambda a: a[:1], step0)
     q0, v0 = x0[:k], x0[k:]
     res0, ct0 = _residuals(arm, ds, first, q0[None], v0[None], jnp.zeros((1, k)))
-    a0 = gl.lu_solve(gl.lu(arm.mass + ct0.mu[0] * jnp.outer(ct0.g[0], ct0.g[0])), res0[0])
+    a0 = gl.solve(arm.mass + ct0.mu[0] * jnp.outer(ct0.g[0], ct0.g[0]), res0[0])
     prev = jnp.tile(a0, (3, 1))
     tan0 = jnp.zeros((2 * k, 0)) if tangents is None else tangents
     ext0 = ()
