@@ -180,9 +180,7 @@ def _simulate(machine, operating, basis, *, method, steps, n_out, rtol, atol, to
     elif method == "collocation":
         dense = steady_cycle(model, steps, tolerance=tolerance)
         shooting, x0, end, ts = dense.shooting, dense.shooting.state, dense.end, dense.time
-        rigid = jax.vmap(lambda t: rigid_state(model, t))(ts)
-        flexible = jax.vmap(lambda r, q, qd: flexible_outputs(model, r, q, qd))(
-            rigid, dense.q, dense.qdot)
+        flexible = dense.outputs  # the rigid motion's outputs included
         solved = dense.reachable & jnp.all(jnp.isfinite(end))
         num_steps = jnp.asarray(steps)
     else:
@@ -204,7 +202,9 @@ def _simulate(machine, operating, basis, *, method, steps, n_out, rtol, atol, to
         solved = sol.result == diffrax.RESULTS.successful
         num_steps = sol.stats["num_accepted_steps"]
     periodicity = relative_residual(x0, end)
-    series = Timeseries(t=ts, **flexible, **rigid_outputs(model, ts))
+    if method != "collocation":
+        flexible = dict(flexible, **rigid_outputs(model, ts))
+    series = Timeseries(t=ts, **flexible)
     return Simulation(
         model=model, series=series, metrics=cycle_metrics(series),
         natural_frequencies=coupled_frequencies(model), shooting=shooting,

@@ -100,17 +100,23 @@ def periodic_state(period_map: Callable[[Array], Array], x0: Array, *, tolerance
             ∂F/∂x, used by the chord iterations instead of the exact one (cheaper; the root and
             its derivatives do not depend on it, only the number of iterations does).
     """
-    n = x0.shape[0]
     iterations, root, residual = jax.lax.stop_gradient(
         _newton(period_map, jax.lax.stop_gradient(x0), tolerance, max_iterations, linearised))
+    return ShootingResult(state=attach_root_derivative(period_map, root), residual=residual,
+                          iterations=iterations, converged=residual <= tolerance)
+
+
+def attach_root_derivative(period_map: Callable[[Array], Array], root: Array) -> Array:
+    """``root``, a periodic state F(x) = x found already, with the implicit-function derivative
+    dx/dp = (I − F_x)⁻¹ F_p attached (``jax.lax.custom_root``, whose solve returns the guess
+    unchanged): derivatives of anything computed from it follow the root, not the iterations
+    that found it. ``period_map`` (closing over the parameters) is traced only when
+    differentiating."""
+    n = root.shape[0]
 
     def tangent_solve(g, y):
         jac = jax.vmap(g, in_axes=1, out_axes=1)(jnp.eye(n, dtype=y.dtype))
         return jnp.linalg.solve(jac, y)
 
-    # The Newton iterate is already the root; custom_root only attaches the implicit-function
-    # derivative to it (its `solve` returns the guess unchanged).
-    state = jax.lax.custom_root(lambda x: period_map(x) - x, root, lambda f, guess: guess,
-                                tangent_solve)
-    return ShootingResult(state=state, residual=residual, iterations=iterations,
-                          converged=residual <= tolerance)
+    return jax.lax.custom_root(lambda x: period_map(x) - x, root, lambda f, guess: guess,
+                               tangent_solve)

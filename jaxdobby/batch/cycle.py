@@ -48,6 +48,7 @@ class ArmTerms(eqx.Module):
             k₉R_rᵀE₁₁R_r, k₉R_rᵀ(E₁₂ + E₂₁)R_r, k₉R_rᵀE₂₂R_r], (10, k, k).
         centrifugal: f_ω (k,). euler: f_α (k,). translation: F_tr (k, 2).
         gravity: g₀ [m/s²].
+        ring_rows: Φ at the ring-link joint, body frame (2, k). ring_stiffness: k₉ [N/m].
     """
 
     mass: Array
@@ -58,6 +59,8 @@ class ArmTerms(eqx.Module):
     euler: Array
     translation: Array
     gravity: Array
+    ring_rows: Array
+    ring_stiffness: Array
 
 
 def arm_terms(model: DobbyModel) -> ArmTerms:
@@ -83,7 +86,7 @@ def arm_terms(model: DobbyModel) -> ArmTerms:
     ])
     return ArmTerms(mass=b.mass, damping=b.damping, gyroscopic=b.gyroscopic, stiffness=stack,
                     centrifugal=b.centrifugal, euler=b.euler, translation=b.translation,
-                    gravity=m.gravity)
+                    gravity=m.gravity, ring_rows=rows, ring_stiffness=k9)
 
 
 class RigidArm(eqx.Module):

@@ -5,10 +5,11 @@ the batch evaluator (:mod:`jaxdobby.batch.cycle`, :mod:`jaxdobby.batch.stepper`:
 coupled model, three-stage Gauss collocation on a phase-normalised grid, the chain in closed
 form) with
 
-* the periodic state by Newton–chord shooting (the chord matrix from the frozen Newton
-  matrices' tangents, as the batch evaluator) and the implicit-function derivative of :func:`jaxdobby.steady_state.periodic_state` (so gradients
-  through a run follow dx₀/dp = (I − F_x)⁻¹ F_p, not the iterations), started from the static
-  equilibrium at t = 0;
+* the periodic state by chord shooting started from the periodic state of the equations
+  linearised about the rigid motion, with their monodromy matrix as the chord matrix (as the
+  batch evaluator, :mod:`jaxdobby.batch.linear`), and the implicit-function derivative of
+  :func:`jaxdobby.steady_state.attach_root_derivative` (so gradients through a run follow
+  dx₀/dp = (I − F_x)⁻¹ F_p, not the iterations);
 * the steady cycle as the collocation polynomial (:func:`jaxdobby.batch.collocation.dense_weights`)
   sampled ``per_step`` times per step, uniformly in time, plus the end point t = T.
 
@@ -19,6 +20,8 @@ to ~3e-5 (:mod:`jaxdobby.batch.steady`; the tests compare this path too).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -26,35 +29,17 @@ import numpy as np
 from jax import Array
 
 from ..dobby import DobbyModel
-from ..steady_state import ShootingResult, periodic_state
+from ..steady_state import ShootingResult, attach_root_derivative, relative_residual
 from . import collocation as gl
-from .chain import Downstream, chain_reachable
+from .chain import Downstream, chain_reachable, chain_terms, downstream
 from .collocation import MATRIX2, NODES, dense_weights
-from .cycle import ArmTerms, rigid_arm, tables_at
-from .steady import cycle_of
-from .stepper import _residuals, cycle_pass
+from .cycle import ArmTerms, RigidArm, StageTables, arm_terms, node_phases, rigid_arm, tables_at
+from .linear import linearise
+from .steady import Cycle
+from .stepper import PassResult, cycle_pass
 
 PER_STEP = 4
 """Output times per collocation step (uniform in time)."""
-
-
-def static_state(model: DobbyModel, arm: ArmTerms, ds: Downstream) -> Array:
-    """x = (q, 0) at rest in the static equilibrium at t = 0 (bottom dwell), by Newton's method
-    on the full residual (three iterations from q = 0; the chain is nearly linear there).
-    ``arm``, ``ds``: ``model``'s :func:`~jaxdobby.batch.cycle.arm_terms` and
-    :func:`~jaxdobby.batch.chain.downstream`."""
-    table = tables_at(arm, ds, rigid_arm(model, jnp.zeros(1)), model.period)
-    k = model.n_modes
-    zero = jnp.zeros((1, k))
-
-    def residual(q):
-        return _residuals(arm, ds, table, q[None], zero, zero)[0][0]
-
-    q = jnp.zeros(k)
-    for _ in range(3):
-        jac = jax.jacfwd(residual)(q)
-        q = q - gl.lu_solve(gl.lu(jac), residual(q))
-    return jnp.concatenate([q, jnp.zeros(k)])
 
 
 class DenseCycle(eqx.Module):
@@ -66,6 +51,9 @@ class DenseCycle(eqx.Module):
         shooting: the periodic state's shooting result.
         end: the state after the saved cycle, (2k,) (for the periodicity check).
         reachable: the chain closed at every collocation node of the saved cycle.
+        outputs: the heald frame's rigid and flexible motion, the link-11 joint's deviation
+            and the link forces at ``time`` (:func:`outputs_at`; the keys of
+            :class:`~jaxdobby.outputs.Timeseries`).
     """
 
     time: Array
@@ -74,39 +62,148 @@ class DenseCycle(eqx.Module):
     shooting: ShootingResult
     end: Array
     reachable: Array
+    outputs: dict
+
+
+def outputs_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, st: StageTables, q: Array,
+               qdot: Array) -> dict[str, Array]:
+    """What a run reports at output times, from the state (q, q̇) there (each (n, k)) and the
+    rigid motion's tables ``st`` and ``rigid`` at the same phases (leading axis n).
+
+    The chain in closed form (:func:`~jaxdobby.batch.chain.chain_terms`), q̈ from the
+    equations of motion at (q, q̇) — M(q) q̈ = f − C q̇ − K q + g φ, the residual of the
+    passes — and the same definitions as :func:`jaxdobby.outputs.flexible_outputs` and
+    :func:`~jaxdobby.outputs.rigid_outputs` (which use the autodiff kinematics of
+    :mod:`jaxdobby.dobby`; the tests hold the two to round-off). SI units, heights and forces
+    positive up; the link-11 force acts on the arm, in inertial axes.
+    """
+    flex = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(ds, st.frame, q @ ds.rows.T,
+                                                          qdot @ ds.rows.T)
+    rest = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(
+        ds, st.frame, jnp.zeros_like(q[:, :2]), jnp.zeros_like(q[:, :2]))
+    omega = st.frame.omega
+    force = (st.force - qdot @ arm.damping.T - 2.0 * omega[:, None] * (qdot @ arm.gyroscopic.T)
+             - jnp.einsum("nij,nj->ni", st.stiffness, q) + flex.phi[:, None] * flex.g)
+    mass = arm.mass[None] + flex.mu[:, None, None] * flex.g[:, :, None] * flex.g[:, None, :]
+    qddot = jnp.linalg.solve(mass, force[..., None])[..., 0]
+    beta_acc = jnp.sum(flex.g * qddot, axis=1) + flex.h_beta
+    c, s = st.frame.cos, st.frame.sin
+
+    def inertial(v):
+        return jnp.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], axis=1)
+
+    link_body = flex.grad_body * (flex.phi - flex.mu * (beta_acc - flex.h_beta))[:, None]
+    return dict(
+        heald_flexible=flex.height,
+        velocity_flexible=flex.slope * flex.beta_rate,
+        acceleration_flexible=flex.slope * beta_acc + flex.curvature * flex.beta_rate**2,
+        link_point_deviation=inertial(q @ ds.rows.T),
+        ring_link_force=arm.ring_stiffness * jnp.sum(rigid.ring * (q @ arm.ring_rows.T), axis=1),
+        link11_force=inertial(link_body),
+        modal=q,
+        heald_rigid=rest.height,
+        velocity_rigid=rest.slope * rest.beta_rate,
+        acceleration_rigid=rest.slope * rest.h_beta + rest.curvature * rest.beta_rate**2,
+    )
+
+
+class _Chord(NamedTuple):
+    """State of the chord iteration of :func:`steady_cycle`: passes run, the next start state,
+    the residuals of the last two passes, and the last pass (its start state and result)."""
+
+    passes: Array
+    x: Array
+    residual: Array
+    previous: Array
+    start: Array
+    run: PassResult
+
+
+@jax.custom_jvp
+def _replayed(cycle: Cycle, x: Array, run: PassResult) -> PassResult:
+    """``run``, the recorded pass of ``cycle`` from ``x``, computed already: its value is
+    returned as it is; its derivative is that of the pass (a JVP of it, traced only under
+    differentiation). The forward program then holds one copy of the pass, the chord loop's."""
+    return run
+
+
+@_replayed.defjvp
+def _replayed_jvp(primals, tangents):
+    cycle, x, run = primals
+    d_cycle, d_x, _ = tangents
+
+    def replay(c, xx):
+        return cycle_pass(c.arm, c.downstream, c.tables, c.period, xx, record=True)
+
+    _, d_run = jax.jvp(replay, (cycle, x), (d_cycle, d_x))
+    return run, d_run
 
 
 def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int = PER_STEP,
                  max_iterations: int = 8) -> DenseCycle:
     """Periodic steady cycle of ``model`` by collocation (see the module docstring).
 
+    The chord iteration x ← x + (I − Φ)⁻¹(F(x) − x) starts from the periodic state of the
+    equations linearised about the rigid motion, with their monodromy matrix Φ
+    (:func:`~jaxdobby.batch.linear.linearise`, as the batch evaluator), and stops one pass
+    after the residual ‖F(x) − x‖/‖x‖ falls to ``tolerance``: that last pass, from the
+    corrected state, is the recorded steady cycle. Every pass is the same recording pass, so
+    the compiled program holds it once; the recorded cycle is differentiable through
+    :func:`_replayed` and the implicit-function derivative of the periodic state
+    (:func:`jaxdobby.steady_state.periodic_state`'s ``custom_root``).
+
     Args:
         model: the coupled model (two-way coupling).
         steps: collocation steps per cycle (static).
         tolerance: relative periodicity to stop the shooting at.
         per_step: output times per step (static).
-        max_iterations: shooting iterations at most (static).
+        max_iterations: chord iterations at most before the recorded pass (static).
     """
     if model.machine.coupling != "two-way":
         raise ValueError("the collocation path solves the two-way coupled model; got coupling="
                          f"{model.machine.coupling!r} (use method='rk4' or 'adaptive')")
-    cycle = cycle_of(model, steps)
-    arm, ds, tables, period = cycle.arm, cycle.downstream, cycle.tables, cycle.period
+    # the rigid motion at the collocation nodes and at the output times in one evaluation
+    # (one copy of the autodiff kinematics in the program); the end t = T is the phase 0 of the
+    # periodic motion (the opposing warp law turns there)
+    n_out = steps * per_step
+    arm, ds, period = arm_terms(model), downstream(model), jnp.asarray(model.period)
+    phases = jnp.concatenate([node_phases(steps).reshape(-1),
+                              (jnp.arange(n_out + 1) % n_out) / n_out])
+    rigid = rigid_arm(model, phases)
+    every = tables_at(arm, ds, rigid, period)
+    tables = jax.tree.map(lambda a: a[:3 * steps].reshape((steps, 3) + a.shape[1:]), every)
+    out_tables, out_rigid = (jax.tree.map(lambda a: a[3 * steps:], x) for x in (every, rigid))
+    cycle = Cycle(arm, ds, tables, period)
 
-    def period_map(x):
-        return cycle_pass(arm, ds, tables, period, x).end
+    def recorded(c, x):
+        return cycle_pass(c.arm, c.downstream, c.tables, c.period, x, record=True)
 
-    def linearised(x):
-        # the frozen Newton matrices' tangents (as the batch evaluator): ~1e-3 from the exact
-        # monodromy matrix, at a seventh of the cost of 2k forward-mode tangents
-        run = cycle_pass(arm, ds, tables, period, x, tangents=jnp.eye(x.shape[0]),
-                         full_jacobian=True)
-        return run.end, run.tangents
+    def iterate(c):
+        lin = linearise(c.arm, c.downstream, c.tables, c.period)
+        chord = jnp.linalg.inv(jnp.eye(lin.monodromy.shape[0]) - lin.monodromy)
+        x = chord @ lin.rest_response
+        inf = jnp.asarray(jnp.inf, x.dtype)
 
-    rest = static_state(model, arm, ds)
-    shooting = periodic_state(period_map, rest, tolerance=tolerance,
-                              max_iterations=max_iterations, linearised=linearised)
-    run = cycle_pass(arm, ds, tables, period, shooting.state, record=True)
+        def step(it):
+            run = recorded(c, it.x)
+            return _Chord(it.passes + 1, it.x + chord @ (run.end - it.x),
+                          relative_residual(it.x, run.end), it.residual, it.x, run)
+
+        def keep_going(it):
+            # run until the pass *after* the one whose residual reached the tolerance
+            return (it.passes <= max_iterations) & (it.previous > tolerance)
+
+        # no pass before the loop (it would be a second copy in the program): a blank one
+        blank = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype),
+                             jax.eval_shape(recorded, c, x))
+        return jax.lax.while_loop(keep_going, step, _Chord(jnp.asarray(0), x, inf, inf, x, blank))
+
+    it = jax.lax.stop_gradient(iterate(cycle))
+    converged_residual = jnp.where(it.previous > tolerance, it.residual, it.previous)
+    state = attach_root_derivative(lambda x: recorded(cycle, x).end, it.start)
+    shooting = ShootingResult(state=state, residual=converged_residual, iterations=it.passes,
+                              converged=converged_residual <= tolerance)
+    run = _replayed(cycle, state, it.run)
     q, v, acc = run.trajectory
     h = period / steps
     theta = np.arange(per_step) / per_step
@@ -122,7 +219,8 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
     frames = jax.tree.map(lambda a: a.reshape(-1), tables.frame)
     reach = jax.vmap(chain_reachable, in_axes=(None, 0, 0))(
         ds, frames, stage_q.reshape(-1, k) @ ds.rows.T)
-    return DenseCycle(time=jnp.concatenate([t, period[None]]),
-                      q=jnp.concatenate([qs, run.end[None, :k]]),
-                      qdot=jnp.concatenate([vs, run.end[None, k:]]),
-                      shooting=shooting, end=run.end, reachable=jnp.all(reach))
+    q_all = jnp.concatenate([qs, run.end[None, :k]])
+    qdot_all = jnp.concatenate([vs, run.end[None, k:]])
+    return DenseCycle(time=jnp.concatenate([t, period[None]]), q=q_all, qdot=qdot_all,
+                      shooting=shooting, end=run.end, reachable=jnp.all(reach),
+                      outputs=outputs_at(arm, ds, out_rigid, out_tables, q_all, qdot_all))
