@@ -17,7 +17,7 @@ It also reports how many cycles the lanes needed: a vmapped while loop would int
 (chunk × the slowest lane's cycles), the rounds about the sum of the lanes' own.
 
 Run (alone on the machine; ``taskset -c 0`` pins it to one core):
-    PYTHONPATH=. python benchmarks/batch_profile.py [--chunk 256] [--quick]
+    python benchmarks/batch_profile.py [--chunk 256] [--quick]
 Writes ``benchmarks/results/batch_profile.json`` and ``.md``.
 """
 
@@ -28,6 +28,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
+if __package__ in (None, ""):  # run as `python benchmarks/batch_profile.py`
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks._common import (
     RESULTS,

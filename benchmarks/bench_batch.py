@@ -27,7 +27,7 @@ jaxlib's 2-thread pool; see ``jaxdobby.batch.steady.prepare``.)
 Accuracy, on the scipy subset: the batch metrics and the scipy metrics against a tight reference
 (DOP853, rtol 1e-10, jitted right-hand side) on the same samples.
 
-Run:  PYTHONPATH=. python benchmarks/bench_batch.py [--quick] [--out benchmarks/results]
+Run:  python benchmarks/bench_batch.py [--quick] [--out benchmarks/results]
 """
 
 from __future__ import annotations

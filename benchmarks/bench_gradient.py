@@ -19,7 +19,7 @@ scipy variant at the accuracy finite differences need, rtol 1e-9, step 1e-3 rela
 thickness derivative is measured; the eight-variable cost is two solves per variable at the
 measured median seconds per solve (the solves are alike), marked as extrapolated.
 
-Run:  PYTHONPATH=. python benchmarks/bench_gradient.py [--quick] [--out benchmarks/results]
+Run:  python benchmarks/bench_gradient.py [--quick] [--out benchmarks/results]
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ Accuracy: each run's metrics against a tight reference (DOP853, rtol 1e-12, peri
 jitted right-hand side — the same equations, equal to the numpy one to 1e-15) evaluated by its
 dense output on that run's own output grid, so the error is the integration error.
 
-Run:  PYTHONPATH=. python benchmarks/bench_simulate.py [--quick] [--out benchmarks/results]
+Run:  python benchmarks/bench_simulate.py [--quick] [--out benchmarks/results]
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ machine at 800 r/min, on the optimiser's model (each design on its own modes):
 compile time apart, ``block_until_ready``, median of repeats. Writes JSON and a markdown table
 after every case; ``--rows-from LOG`` keeps the rows a previous (interrupted) run printed.
 
-Run:  PYTHONPATH=. python benchmarks/gradient_cost.py [--repeats 3] [--out benchmarks/results]
+Run:  python benchmarks/gradient_cost.py [--repeats 3] [--out benchmarks/results]
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ the file. ``*_quick.json`` (smoke runs of the tests) are skipped unless ``--incl
 Known benchmarks come first in a fixed order, the rest alphabetically; each section states the
 machine, versions and date it was measured on, as its JSON records them.
 
-Run:  PYTHONPATH=. python benchmarks/make_readme.py [--results DIR] [--output FILE]
+Run:  python benchmarks/make_readme.py [--results DIR] [--output FILE]
 """
 
 from __future__ import annotations
@@ -31,12 +31,12 @@ RERUN = """\
 From the repository root, with float64 on (the scripts set it) and nothing else heavy running:
 
 ```sh
-PYTHONPATH=. python benchmarks/bench_simulate.py      # cold/warm simulate vs solve_ivp, work–precision
-PYTHONPATH=. python benchmarks/bench_batch.py         # 256 / 4096 / 65 536 samples, 1 and 2 devices
-PYTHONPATH=. python benchmarks/bench_gradient.py      # d deviation / d design vs finite differences
-PYTHONPATH=. python benchmarks/sobol_throughput.py --accuracy  # samples/s, the default study, corners
-PYTHONPATH=. taskset -c 0 python benchmarks/batch_profile.py  # ms per sample of each part, one core
-PYTHONPATH=. python benchmarks/make_readme.py         # this file
+python benchmarks/bench_simulate.py      # cold/warm simulate vs solve_ivp, work–precision
+python benchmarks/bench_batch.py         # 256 / 4096 / 65 536 samples, 1 and 2 devices
+python benchmarks/bench_gradient.py      # d deviation / d design vs finite differences
+python benchmarks/sobol_throughput.py --accuracy  # samples/s, the default study, corners
+taskset -c 0 python benchmarks/batch_profile.py  # ms per sample of each part, one core
+python benchmarks/make_readme.py         # this file
 ```
 
 Each script takes `--quick` (the smoke size the tests run; results go to `*_quick.json`,

@@ -19,7 +19,7 @@ Results are written after every optimisation; ``--resume`` keeps the rows alread
 and runs only the missing ones. Compilations go to jaxdobby's persistent cache
 (``JAXDOBBY_CACHE_DIR``).
 
-Run:  PYTHONPATH=. python benchmarks/optimize_designs.py [--out benchmarks/results]
+Run:  python benchmarks/optimize_designs.py [--out benchmarks/results]
 """
 
 from __future__ import annotations

@@ -28,9 +28,22 @@ from .errors import InputError
 EXIT_BAD_INPUT = 2
 
 
+CPU_XLA_FLAGS = "--xla_cpu_use_fusion_emitters=false"
+"""XLA flags of the command line's programs on the CPU: fusions compiled by XLA's loop emitters
+rather than its newer MLIR fusion emitters, which compiled the dobby's programs about 1.5–2×
+slower and ran them no faster (see ``jaxdobby.sensitivity.batch.CPU_COMPILER_OPTIONS``;
+``benchmarks/compile_time.py``). Set only for jaxlib ≥ 0.7 (older ones abort on a flag they do
+not know) and only when ``XLA_FLAGS`` does not set it already."""
+
+
 def _configure_jax() -> None:
-    """float64, and a persistent compilation cache so that later runs skip most compiling
-    (``JAXDOBBY_CACHE_DIR`` to move it, ``JAXDOBBY_CACHE_DIR=off`` to disable it)."""
+    """float64, XLA's CPU flags of :data:`CPU_XLA_FLAGS`, and a persistent compilation cache so
+    that later runs skip most compiling (``JAXDOBBY_CACHE_DIR`` to move it,
+    ``JAXDOBBY_CACHE_DIR=off`` to disable it). Must run before JAX's first computation (XLA
+    reads its flags once)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_use_fusion_emitters" not in flags and _jaxlib_at_least(0, 7):
+        os.environ["XLA_FLAGS"] = f"{flags} {CPU_XLA_FLAGS}".strip()
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -39,6 +52,17 @@ def _configure_jax() -> None:
     if cache.lower() != "off":
         jax.config.update("jax_compilation_cache_dir", cache)
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def _jaxlib_at_least(*version: int) -> bool:
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as installed
+
+    try:
+        parts = installed("jaxlib").split(".")[:len(version)]
+        return tuple(int("".join(ch for ch in p if ch.isdigit()) or 0) for p in parts) >= version
+    except PackageNotFoundError:
+        return False
 
 
 FLAG_PARAMETERS = {"speed": "speed", "warp_force": "warp_force", "stroke": "stroke",
