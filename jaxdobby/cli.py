@@ -47,11 +47,17 @@ def _configure_jax() -> None:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    cache = os.environ.get("JAXDOBBY_CACHE_DIR",
-                           str(Path.home() / ".cache" / "jaxdobby" / "xla"))
-    if cache.lower() != "off":
-        jax.config.update("jax_compilation_cache_dir", cache)
+    cache = _cache_dir()
+    if cache is not None:
+        jax.config.update("jax_compilation_cache_dir", str(cache))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def _cache_dir() -> Path | None:
+    """XLA's persistent compilation cache of the command line (None: ``=off``); the traced
+    programs of :mod:`jaxdobby.programs` are kept in its ``programs`` folder."""
+    cache = os.environ.get("JAXDOBBY_CACHE_DIR", str(Path.home() / ".cache" / "jaxdobby" / "xla"))
+    return None if cache.lower() == "off" else Path(cache)
 
 
 def _jaxlib_at_least(*version: int) -> bool:
@@ -117,14 +123,15 @@ def setup_from_args(ns: argparse.Namespace):
 
 def _simulate(ns: argparse.Namespace) -> int:
     from .report import dumps, summary_table, write_run
-    from .simulate import simulate, summary
+    from .simulate import stored_report
 
     setup, options = setup_from_args(ns)
-    _status("solving the periodic steady state (the first run compiles: up to a minute)...")
-    run = simulate(setup.machine, setup.operating, method=options.method, steps=options.steps)
-    result = summary(run)
+    _status("solving the periodic steady state (a first run of a configuration compiles it)...")
+    cache = _cache_dir()
+    result, series = stored_report(setup, options,
+                                   directory=None if cache is None else cache / "programs")
     if ns.out:
-        paths = write_run(ns.out, result, run.series, figures=not ns.no_figures)
+        paths = write_run(ns.out, result, series, figures=not ns.no_figures)
         _status(f"wrote {len(paths)} files to {ns.out}")
     if ns.json:
         print(dumps(result))

@@ -157,9 +157,8 @@ def _save(model, rigid, x):
     return flexible_outputs(model, rigid, x[:k], x[k:]), x
 
 
-@eqx.filter_jit
-def _simulate(machine, operating, basis, *, method, steps, n_out, rtol, atol, tolerance,
-              forward_mode):
+def _simulate_impl(machine, operating, basis, *, method, steps, n_out, rtol, atol, tolerance,
+                   forward_mode):
     model = build_model(machine, operating, basis)
     k = model.n_modes
     x_rest = jnp.zeros(2 * k)
@@ -214,19 +213,40 @@ def _simulate(machine, operating, basis, *, method, steps, n_out, rtol, atol, to
     )
 
 
-def summary(run: Simulation) -> dict[str, float | list | bool]:
-    """The run's summary in the users' units (the keys of ``jaxdobby simulate --json``)."""
-    m = {k: float(v) for k, v in run.metrics.items()}
+_simulate = eqx.filter_jit(_simulate_impl)
+
+_SIMULATE_DEFAULTS = dict(n_out=3001, rtol=1e-8, atol=1e-12, tolerance=1e-6, forward_mode=False)
+""":func:`simulate`'s defaults of the options the command line does not set."""
+
+
+def report_arrays(run: Simulation) -> dict[str, Array]:
+    """Every array the run's report needs (:func:`summary_of`, the time series), by name: a
+    flat dict of arrays, what :func:`stored_report`'s stored program returns."""
     model = run.model
+    out = {f"metric.{k}": v for k, v in run.metrics.items()}
+    out.update({f"series.{k}": getattr(run.series, k) for k in Timeseries.__dataclass_fields__})
+    out.update(speed=model.operating.speed, warp_force=model.operating.warp_force,
+               thickness=model.machine.arm.thickness, stroke=model.stroke,
+               natural_frequencies=run.natural_frequencies,
+               arm_frequencies=model.body.frequencies_hz, converged=run.converged,
+               periodicity=run.periodicity, iterations=run.shooting.iterations)
+    return out
+
+
+def summary_of(arrays: dict, machine: Machine) -> dict[str, float | list | bool]:
+    """The summary in the users' units (the keys of ``jaxdobby simulate --json``) from
+    :func:`report_arrays` of a run of ``machine``."""
+    m = {k.removeprefix("metric."): float(v) for k, v in arrays.items()
+         if k.startswith("metric.")}
     mm = 1e3
     return {
-        "speed_rpm": float(model.operating.speed) * 60.0 / (2.0 * np.pi),
-        "warp_force_n": float(model.operating.warp_force),
-        "thickness_mm": float(model.machine.arm.thickness) * mm,
-        "n_modes": int(model.n_modes),
-        "stroke_mm": float(model.stroke) * mm,
-        "coupling": model.machine.coupling,
-        "warp_law": model.machine.warp_law,
+        "speed_rpm": float(arrays["speed"]) * 60.0 / (2.0 * np.pi),
+        "warp_force_n": float(arrays["warp_force"]),
+        "thickness_mm": float(arrays["thickness"]) * mm,
+        "n_modes": int(machine.n_modes),
+        "stroke_mm": float(arrays["stroke"]) * mm,
+        "coupling": machine.coupling,
+        "warp_law": machine.warp_law,
         "deviation_min_mm": m["deviation_min"] * mm,
         "deviation_max_mm": m["deviation_max"] * mm,
         "deviation_pp_mm": m["deviation_pp"] * mm,
@@ -238,9 +258,52 @@ def summary(run: Simulation) -> dict[str, float | list | bool]:
         "acceleration_deviation_amp_m_s2": m["acceleration_deviation_amp"],
         "ring_link_force_max_n": m["ring_link_force_max"],
         "link11_force_max_n": m["link11_force_max"],
-        "natural_frequencies_hz": [float(f) for f in run.natural_frequencies],
-        "arm_frequencies_hz": [float(f) for f in model.body.frequencies_hz],
-        "converged": bool(run.converged),
-        "periodicity_residual": float(run.periodicity),
-        "newton_iterations": int(run.shooting.iterations),
+        "natural_frequencies_hz": [float(f) for f in arrays["natural_frequencies"]],
+        "arm_frequencies_hz": [float(f) for f in arrays["arm_frequencies"]],
+        "converged": bool(arrays["converged"]),
+        "periodicity_residual": float(arrays["periodicity"]),
+        "newton_iterations": int(arrays["iterations"]),
     }
+
+
+def summary(run: Simulation) -> dict[str, float | list | bool]:
+    """The run's summary in the users' units (the keys of ``jaxdobby simulate --json``)."""
+    return summary_of(report_arrays(run), run.model.machine)
+
+
+def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries]:
+    """(summary, time series) of ``simulate(setup.machine, setup.operating, method=…, steps=…)``
+    as the command line reports them, through a stored program
+    (:func:`jaxdobby.programs.call_stored`): a later run of the same configuration — the same
+    sizes, laws and method; any float values — reads the traced program from ``directory``
+    (or the package's shipped ones) instead of tracing it.
+
+    Args:
+        setup: :class:`~jaxdobby.parameters.Setup` (machine and operating point).
+        options: :class:`~jaxdobby.config.RunOptions` (method, steps).
+        directory: where to store and look for programs; None: only the shipped ones.
+    """
+    from .programs import call_stored
+
+    name, fn, args, static_key = report_program(setup, options)
+    arrays = call_stored(name, fn, args, static_key=static_key, directory=directory)
+    series = Timeseries(**{k.removeprefix("series."): v for k, v in arrays.items()
+                           if k.startswith("series.")})
+    return summary_of(arrays, setup.machine), series
+
+
+def report_program(setup, options) -> tuple:
+    """(name, function of flat arrays, the arrays, static_key) of :func:`stored_report`'s
+    program (the arguments of :func:`jaxdobby.programs.call_stored`)."""
+    require_x64()
+    machine, operating = setup.machine, setup.operating
+    method, steps = resolve_method(machine, operating, options.method, options.steps)
+    dynamic, static = eqx.partition((machine, operating), eqx.is_array)
+    leaves, tree = jax.tree.flatten(dynamic)
+
+    def report(*values):
+        m, o = eqx.combine(jax.tree.unflatten(tree, values), static)
+        return report_arrays(_simulate_impl(m, o, None, method=method, steps=steps,
+                                            **_SIMULATE_DEFAULTS))
+
+    return "simulate", report, leaves, repr((static, tree, method, steps, _SIMULATE_DEFAULTS))

@@ -1,0 +1,127 @@
+"""Traced programs kept on disk, so that a later run skips tracing (``jax.export``).
+
+Tracing and lowering the steady-state program of :func:`jaxdobby.simulate.simulate` takes
+seconds of Python work before XLA compiles anything, and with XLA's persistent compilation cache
+filled it is most of what a repeated ``jaxdobby simulate`` waits for. :func:`call_stored` runs a
+function of flat arrays through its *exported* program (StableHLO, serialised with
+``jax.export``): the first call traces and exports it and writes it to a directory; a later call
+(any process) reads it back and only lowers a thin wrapper around it — and XLA's persistent
+cache then also holds the compiled executable.
+
+A stored program is found by a key of everything it depends on: the program's name and static
+configuration (sizes, laws, method: ``static_key``), the shapes and dtypes of its arguments, the
+JAX and jaxlib versions, the platform, and a fingerprint of jaxdobby's own source files. Any
+change of the code therefore makes a new key — a stale program is never used, only not found.
+
+Programs of the default configuration ship in the package (``jaxdobby/data/programs``, made by
+``python -m jaxdobby.programs``), so that even the first run with an empty cache skips tracing
+when the installed JAX is the one they were made with; ``tests/test_programs.py`` checks that
+they are current.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from functools import cache
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+PACKAGE = Path(__file__).resolve().parent
+SHIPPED = PACKAGE / "data" / "programs"
+"""Programs of the default configuration, shipped with the package."""
+
+
+@cache
+def source_fingerprint() -> str:
+    """SHA-256 of jaxdobby's Python sources (paths and contents, in path order), with the JAX
+    and jaxlib versions: what a stored program was made from."""
+    import jaxlib
+
+    digest = hashlib.sha256(f"jax {jax.__version__} jaxlib {jaxlib.__version__}".encode())
+    for path in sorted(PACKAGE.rglob("*.py")):
+        digest.update(str(path.relative_to(PACKAGE)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def program_key(name: str, static_key: str, args: Sequence) -> str:
+    """The file name of a stored program (see the module docstring)."""
+    shapes = ";".join(f"{jnp.result_type(a)}{list(jnp.shape(a))}" for a in args)
+    text = "\n".join([name, static_key, shapes, jax.default_backend(), source_fingerprint()])
+    return f"{name}-{hashlib.sha256(text.encode()).hexdigest()[:24]}.jaxexport"
+
+
+def _read(path: Path):
+    try:
+        return jax.export.deserialize(bytearray(path.read_bytes()))
+    except (OSError, ValueError, ImportError):  # unreadable or from another JAX: trace anew
+        return None
+
+
+def export_program(fn: Callable, args: Sequence):
+    """``jax.export`` of ``jax.jit(fn)`` for arguments shaped as ``args``."""
+    specs = [jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a)) for a in args]
+    return jax.export.export(jax.jit(fn))(*specs)
+
+
+def write_program(exported, path: Path) -> None:
+    """Write a serialised program atomically (a temporary file renamed into place)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".jaxexport")
+    with os.fdopen(fd, "wb") as f:
+        f.write(exported.serialize())
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+
+
+def call_stored(name: str, fn: Callable, args: Sequence, *, static_key: str,
+                directory: Path | None):
+    """``fn(*args)`` through its stored program (see the module docstring).
+
+    Args:
+        name: the program's name (a file-name prefix).
+        fn: a function of the arrays ``args`` alone (everything static closed over and
+            described by ``static_key``), returning a pytree of standard containers (dicts,
+            lists, tuples) of arrays.
+        args: the arrays.
+        static_key: a text that differs whenever what ``fn`` closes over differs.
+        directory: where programs are stored and looked for (besides the shipped ones);
+            None: do not store.
+    """
+    key = program_key(name, static_key, args)
+    places = ([directory / key] if directory is not None else []) + [SHIPPED / key]
+    for path in places:
+        if path.exists() and (exported := _read(path)) is not None:
+            return exported.call(*args)
+    exported = export_program(fn, args)
+    if directory is not None:
+        try:
+            write_program(exported, directory / key)
+        except OSError:  # a read-only cache only costs the next run the tracing
+            pass
+    return exported.call(*args)
+
+
+def main() -> None:
+    """Make the shipped programs of the default configuration (``python -m jaxdobby.programs``)."""
+    from .cli import _configure_jax
+
+    _configure_jax()
+    from .config import RunOptions
+    from .parameters import Setup
+    from .simulate import stored_report
+
+    for path in SHIPPED.glob("*.jaxexport"):
+        path.unlink()
+    stored_report(Setup(), RunOptions(), directory=SHIPPED)
+    for path in sorted(SHIPPED.glob("*.jaxexport")):
+        print(f"wrote {path.relative_to(PACKAGE.parent)} ({path.stat().st_size / 1e3:.0f} kB)")
+
+
+if __name__ == "__main__":
+    main()

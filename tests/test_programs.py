@@ -1,0 +1,53 @@
+"""Stored programs (jaxdobby.programs): what the command line runs through them is what
+simulate computes, and the package's shipped program of the default configuration is current."""
+
+import numpy as np
+import pytest
+
+from jaxdobby import programs
+from jaxdobby.config import RunOptions
+from jaxdobby.parameters import Setup
+from jaxdobby.simulate import report_program, simulate, stored_report, summary
+
+
+@pytest.fixture(scope="module")
+def default_setup():
+    return Setup()
+
+
+def test_shipped_program_of_the_default_configuration_is_current(default_setup):
+    """The first `jaxdobby simulate` with an empty cache skips tracing only if the package ships
+    the default configuration's program for the current sources (their fingerprint is part of
+    its key). After a change of jaxdobby's code: `python -m jaxdobby.programs` makes it anew."""
+    name, _, args, static_key = report_program(default_setup, RunOptions())
+    key = programs.program_key(name, static_key, args)
+    assert (programs.SHIPPED / key).exists(), (
+        "the shipped program is stale: run `python -m jaxdobby.programs` and commit "
+        "jaxdobby/data/programs")
+    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 1
+
+
+def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):
+    """stored_report (an exported program, stored, then read back by a second call with other
+    float values) against simulate() and summary() run directly on the same inputs: the same
+    XLA program either way, so equal to round-off (1e-12 relative). A stale key (other
+    sources) must not find the stored file."""
+    monkeypatch.setattr(programs, "SHIPPED", tmp_path / "shipped")  # none shipped
+    first, _ = stored_report(default_setup, RunOptions(), directory=tmp_path)
+    stored = list(tmp_path.glob("*.jaxexport"))
+    assert len(stored) == 1
+    slower = Setup(operating=default_setup.operating.__class__.from_users_units(speed_rpm=600.0))
+    got, series = stored_report(slower, RunOptions(), directory=tmp_path)
+    assert list(tmp_path.glob("*.jaxexport")) == stored  # read back, not exported anew
+    run = simulate(slower.machine, slower.operating)
+    want = summary(run)
+    for key, value in want.items():
+        if isinstance(value, float):
+            assert got[key] == pytest.approx(value, rel=1e-12, abs=1e-300), key
+        else:
+            assert got[key] == value, key
+    np.testing.assert_allclose(series.deviation, run.series.deviation, rtol=0,
+                               atol=1e-12 * float(np.ptp(run.series.deviation)))
+    assert first["speed_rpm"] == pytest.approx(800.0) and got["speed_rpm"] == pytest.approx(600.0)
+    name, _, args, static_key = report_program(slower, RunOptions())
+    assert programs.program_key(name, static_key + " changed", args) != stored[0].name
