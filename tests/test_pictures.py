@@ -11,8 +11,8 @@ from PIL import Image
 
 from jaxdobby import simulate
 from jaxdobby.cli import main
-from jaxdobby.dobby import LINK, RING, build_model
-from jaxdobby.machine import Machine, OperatingPoint
+from jaxdobby.dobby import LINK, RING
+from jaxdobby.machine import Machine
 from jaxdobby.outputs import coupled_frequencies, rigid_outputs
 from jaxdobby.pictures.animation import DPI, FIGSIZE, animate
 from jaxdobby.pictures.campbell import (campbell_figure, crossing_speeds, frequency_band,
@@ -45,12 +45,13 @@ def _length(line):
 
 
 @pytest.mark.parametrize("stroke_mm", [140.0, 115.0])
-def test_drawn_link_lengths_are_the_configured_ones(stroke_mm):
+def test_drawn_link_lengths_are_the_configured_ones(stroke_mm, sampling):
     machine = Machine.default()
+    s = sampling
     if stroke_mm != 140.0:
         machine = machine.with_stroke(stroke_mm * 1e-3)
+        s = arm_sampling(machine)
     chain = machine.chain
-    s = arm_sampling(machine)
     poses = rigid_pose(machine, crank_angle_at(machine, np.radians(ANGLES)), s)
     r_j = float(np.linalg.norm(np.asarray(chain.arm.point(chain.ring_joint_arc_length))))
     r_p = float(np.linalg.norm(np.asarray(chain.arm.point(chain.link11_arc_length))))
@@ -80,12 +81,11 @@ def test_drawn_link_lengths_are_the_configured_ones(stroke_mm):
     assert abs(travel - float(machine.stroke())) < 1e-9
 
 
-def test_pose_follows_the_rigid_motion_of_the_model(default_run):
+def test_pose_follows_the_rigid_motion_of_the_model(default_run, sampling):
     model = default_run.model
-    s = arm_sampling(model.machine)
     t = np.radians(ANGLES) / float(model.operating.speed)
-    poses = rigid_pose(model.machine, crank_angle_at(model.machine, np.radians(ANGLES)), s)
-    expected = np.asarray(rigid_outputs(model, t)["heald_rigid"])
+    poses = rigid_pose(model.machine, crank_angle_at(model.machine, np.radians(ANGLES)), sampling)
+    expected = np.asarray(eqx.filter_jit(rigid_outputs)(model, t)["heald_rigid"])
     np.testing.assert_allclose(poses.heald_frame[:, 1], expected, rtol=0, atol=1e-12)
 
 
@@ -121,7 +121,7 @@ def test_mechanism_figure_labels_every_part(sampling):
 
 
 def test_animation_gif_frames_and_size(default_run, tmp_path):
-    n = 10
+    n = 5
     path = animate(default_run, tmp_path / "cycle.gif", n_frames=n, magnification=20.0)
     with Image.open(path) as im:
         assert im.n_frames == n and im.size == GIF_SIZE
@@ -158,8 +158,8 @@ def test_picture_flags_bad_input(args, text, capsys):
     assert text in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
-def test_frequency_band_over_the_cycle():
-    model = eqx.filter_jit(build_model)(Machine.default(), OperatingPoint(), None)
+def test_frequency_band_over_the_cycle(default_run):
+    model = default_run.model
     band = frequency_band(model, n_phases=24)
     # its mid-stroke value is coupled_frequencies' (same linearisation; vmapped vs not: 1e-10)
     np.testing.assert_allclose(band.mid_stroke, np.asarray(coupled_frequencies(model)),

@@ -147,6 +147,9 @@ def animate(run, path, *, n_frames: int = N_FRAMES, magnification: float | None 
     ax_dev.set_ylabel("heald-frame deviation [mm]\n(flexible − rigid, true size)")
     ax_dev.grid(alpha=0.3)
     (marker,) = ax_dev.plot([], [], "o", color="C3", ms=6)
+    arm_points = np.concatenate([np.asarray(p.arm) for p in (rigid, flexible)]).reshape(-1, 2)
+    arm_box = np.stack([arm_points.min(axis=0), arm_points.max(axis=0)]) * MM
+    arm_box += np.array([[-15.0], [15.0]])
     speed_rpm = float(run.model.operating.speed) * 60.0 / (2.0 * math.pi)
 
     def draw(i):
@@ -156,12 +159,19 @@ def animate(run, path, *, n_frames: int = N_FRAMES, magnification: float | None 
         draw_pose(ax, bent[i], sampling, arm_colour="C3", element_values=values, cmap=cmap,
                   norm=norm)
         frame_axes(ax, frames + bent)
-        ax.set_title(f"{speed_rpm:.0f} r/min, loom angle {psi[i]:5.1f}°: arm deformation "
-                     f"×{mag:g}\n(grey: rigid arm; the chain follows the magnified arm)",
-                     fontsize=8)
-        ax.text(0.02, 0.02, f"heald-frame deviation\n{deviation[i] * MM:+.3f} mm",
-                transform=ax.transAxes, ha="left", va="bottom", fontsize=8,
-                bbox=dict(fc="white", ec="0.7", lw=0.6))
+        ax.set_title(f"{speed_rpm:.0f} r/min, loom angle {psi[i]:5.1f}°, heald-frame deviation "
+                     f"{deviation[i] * MM:+.3f} mm\ngrey: rigid; arm deformation ×{mag:g} (the "
+                     "chain follows it)", fontsize=8)
+        zoom = ax.inset_axes([0.02, 0.03, 0.5, 0.5])  # the empty lower left (cla removed it)
+        draw_pose(zoom, frames[i], sampling, ghost=True)
+        draw_pose(zoom, bent[i], sampling, arm_colour="C3", element_values=values, cmap=cmap,
+                  norm=norm)
+        zoom.set_xlim(*arm_box[:, 0])
+        zoom.set_ylim(*arm_box[:, 1])
+        zoom.set_aspect("equal")
+        zoom.set_xticks([])
+        zoom.set_yticks([])
+        zoom.set_title("the arm, enlarged", fontsize=7, pad=2)
         marker.set_data([psi[i] % 720.0], [deviation[i] * MM])
         return []
 

@@ -122,12 +122,15 @@ def campbell_figure(band: FrequencyBand, speeds, deviation_pp_mm, *, f_top: floa
                    label=f"mode {i + 1}: {band.low[i]:.0f}–{band.high[i]:.0f} Hz over the cycle")
         ax.axhline(band.mid_stroke[i], color=f"C{i}", lw=1.0, ls="--")
     crossings = crossing_speeds(band.low[0], band.high[0], (n_lo, n_hi), k_max)
-    for k, a, b in crossings:
+    last_label = math.inf
+    for k, a, b in crossings:  # descending speed: k ascending
         ax.plot([a, b], [k * a / 60.0, k * b / 60.0], color="C3", lw=3.0, solid_capstyle="butt")
         ax_dev.axvspan(a, b, color="C3", alpha=0.12, lw=0)
-        if b - a > 0.03 * (n_hi - n_lo):  # name the harmonic where there is room
-            ax_dev.text(0.5 * (a + b), 1.0, f"k = {k}", transform=ax_dev.get_xaxis_transform(),
+        centre = 0.5 * (a + b)
+        if last_label - centre > 0.07 * (n_hi - n_lo):  # name the harmonic where there is room
+            ax_dev.text(centre, 1.0, f"k = {k}", transform=ax_dev.get_xaxis_transform(),
                         ha="center", va="top", fontsize=7, color="C3")
+            last_label = centre
     hidden = [f"{band.mid_stroke[i]:.0f}" for i in range(band.frequencies.shape[1])
               if i not in shown]
     ax.set_ylim(0.0, f_top)
