@@ -8,7 +8,8 @@ and the heald frame 16's suspension point H on its guide (tumbler 13 = E–H).
 
 :func:`rigid_pose` closes the loops of the rigid mechanism for an eccentric angle with the
 package's own closures (:func:`~jaxdobby.kinematics.arm_angle_from_crank`,
-:func:`~jaxdobby.kinematics.blade_angle`, :func:`~jaxdobby.kinematics.heald_frame_height_from_blade`).
+:func:`~jaxdobby.kinematics.blade_angle`,
+:func:`~jaxdobby.kinematics.heald_frame_height_from_blade`).
 :func:`flexible_pose` adds the arm's elastic deformation u(s) = N(s) Φ q in the arm's frame —
 Φ the model's mode shapes (:func:`jaxdobby.dobby.arm_modes`), q the modal coordinates of a run
 (``Simulation.series.modal``) — optionally magnified, and drives the downstream chain with the
