@@ -125,6 +125,9 @@ def test_animation_gif_frames_and_size(default_run, tmp_path):
     path = animate(default_run, tmp_path / "cycle.gif", n_frames=n, magnification=20.0)
     with Image.open(path) as im:
         assert im.n_frames == n and im.size == GIF_SIZE
+    # deterministic: the same run and arguments give the same file, byte for byte
+    again = animate(default_run, tmp_path / "again.gif", n_frames=n, magnification=20.0)
+    assert again.read_bytes() == path.read_bytes()
     # the colour hook: one value per element and frame; a wrong shape is refused
     values = np.linspace(0.0, 1.0, n * 10).reshape(n, 10)
     path = animate(default_run, tmp_path / "stress.gif", n_frames=n, element_values=values,
