@@ -14,7 +14,7 @@ from jaxdobby.cli import main
 from jaxdobby.dobby import LINK, RING
 from jaxdobby.machine import Machine
 from jaxdobby.outputs import coupled_frequencies, rigid_outputs
-from jaxdobby.pictures.animation import DPI, FIGSIZE, animate
+from jaxdobby.pictures.animation import DPI, FIGSIZE, animate, ffmpeg_binary
 from jaxdobby.pictures.campbell import (campbell_figure, crossing_speeds, frequency_band,
                                         max_harmonic)
 from jaxdobby.pictures.mechanism import draw_pose, mechanism_figure
@@ -136,6 +136,15 @@ def test_animation_gif_frames_and_size(default_run, tmp_path):
         assert im.n_frames == n and im.size == GIF_SIZE
     with pytest.raises(ValueError, match="element_values has shape"):
         animate(default_run, tmp_path / "bad.gif", n_frames=n, element_values=values[:, :3])
+
+
+@pytest.mark.skipif(ffmpeg_binary() is None, reason="no ffmpeg binary (optional extra: video)")
+def test_animation_mp4_frames_and_size(default_run, tmp_path):
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")  # its reader decodes the file
+    path = animate(default_run, tmp_path / "cycle.mp4", n_frames=4, magnification=20.0)
+    frames = imageio_ffmpeg.read_frames(str(path))
+    meta = next(frames)
+    assert tuple(meta["size"]) == GIF_SIZE and sum(1 for _ in frames) == 4
 
 
 def test_simulate_writes_drawing_and_animation(default_run, tmp_path, capsys):
