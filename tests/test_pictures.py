@@ -110,13 +110,25 @@ def test_deformed_pose_reproduces_the_coupled_run(default_run, sampling):
                                atol=1e-12)
 
 
-def test_mechanism_figure_labels_every_part(sampling):
+def test_mechanism_figure_labels_every_part(default_run, sampling):
     fig = mechanism_figure(Machine.default(), 180.0, sampling=sampling)
     ax = fig.axes[0]
     numbers = {t.get_text() for t in ax.texts}
     assert {"8", "9", "10", "11", "12", "13", "16"} <= numbers
     assert ax.get_xlabel().startswith("x [mm]") and ax.get_ylabel() == "y [mm]"
     assert ax.get_aspect() == 1.0  # to scale
+    plt.close(fig)
+    # with modal coordinates: the deformed arm (red) over the rigid one; its tip is displaced by
+    # the magnified deformation of the arm's rows at the tip
+    q = np.asarray(default_run.series.modal)[300]
+    fig = mechanism_figure(Machine.default(), 180.0, sampling=sampling, q=q, magnification=20.0)
+    red = [line for line in fig.axes[0].lines if line.get_color() == "C3"]
+    assert len(red) == 1
+    rigid = rigid_pose(Machine.default(), crank_angle_at(Machine.default(), np.radians(180.0)),
+                       sampling)
+    shift = np.linalg.norm(red[0].get_xydata()[-1] * 1e-3 - rigid.arm[-1])
+    np.testing.assert_allclose(shift, 20.0 * np.linalg.norm(sampling.modal_rows[-1] @ q),
+                               rtol=1e-9)  # a rotation keeps the length of the displacement
     plt.close(fig)
 
 

@@ -149,6 +149,8 @@ def run_campbell(ns: argparse.Namespace) -> int:
     if ns.fmax is not None and not (math.isfinite(ns.fmax) and ns.fmax > 0.0):
         raise InputError(f"--fmax = {ns.fmax:g} is outside the valid range (> 0 Hz)")
     setup, options = setup_from_args(ns)
+    if ns.speed is not None:
+        _status("note: --speed does not apply: the map sweeps the speed (--values)")
     speeds = list(ns.values) if ns.values else DEFAULT_SPEEDS
     sweep = prepare_sweep(setup, "speed", speeds, method=options.method)
     band = frequency_band(eqx.filter_jit(build_model)(setup.machine, setup.operating, None),
