@@ -11,6 +11,10 @@ deviation; ``sweep``: the speed study (deviation and acceleration against speed)
 total Sobol indices of the deviation and the acceleration as bars and pie charts, read from the
 ``indices.json`` of a finished ``jaxdobby sobol`` run (notebook 05 keeps its N = 1024 run in
 ``notebooks/runs/``), or from a fresh run at ``--n`` base samples when none is given;
+``mechanism``: the default machine drawn to scale at mid-lift, parts numbered as in the source
+study; ``animation``: one steady cycle at 800 r/min as ``animation.gif`` and its frame at loom
+angle 180° as ``animation_frame.png``; ``campbell``: the resonance map of the default machine
+(coupled frequency bands, pick-rate harmonics, deviation at 400–1200 r/min by 50);
 ``design``: the arm's depth profile and the heald-frame deviation at 800 r/min of the default
 machine beside the designs of finished ``jaxdobby optimize`` runs (their ``design.toml``, re-run
 here with ``jaxdobby simulate``'s path; notebook 06 keeps its runs in ``notebooks/runs/``), and
@@ -73,6 +77,42 @@ def sweep() -> plt.Figure:
     result = run_sweep(Setup(), "speed", [400.0, 500.0, 600.0, 700.0, 800.0, 900.0, 1000.0,
                                           1100.0, 1200.0])
     return trend_figure(result)  # 690 N, 140 mm, 6 mm: the caption in the README says so
+
+
+def mechanism() -> plt.Figure:
+    from jaxdobby import Machine
+    from jaxdobby.pictures.mechanism import mechanism_figure
+
+    return mechanism_figure(Machine.default(), 180.0)
+
+
+def animation() -> None:
+    """Writes animation.gif (48 frames over the cycle) and its frame 12 (loom angle 180°)."""
+    from PIL import Image
+
+    from jaxdobby import simulate
+    from jaxdobby.pictures.animation import animate
+
+    path = animate(simulate(), OUT / "animation.gif", n_frames=48)
+    with Image.open(path) as im:
+        im.seek(12)
+        im.convert("RGB").save(OUT / "animation_frame.png", optimize=True)
+    print(f"wrote {path.relative_to(HERE.parent)} and animation_frame.png", file=sys.stderr)
+
+
+def campbell() -> plt.Figure:
+    import equinox as eqx
+
+    from jaxdobby.dobby import build_model
+    from jaxdobby.parameters import Setup
+    from jaxdobby.pictures.campbell import campbell_figure, frequency_band
+    from jaxdobby.pictures.command import DEFAULT_SPEEDS
+    from jaxdobby.sweep import run_sweep
+
+    setup = Setup()
+    band = frequency_band(eqx.filter_jit(build_model)(setup.machine, setup.operating, None))
+    result = run_sweep(setup, "speed", DEFAULT_SPEEDS)
+    return campbell_figure(band, DEFAULT_SPEEDS, [r["deviation_pp_mm"] for r in result.rows])
 
 
 def sobol_indices(directory: str | None, n: int) -> dict:
@@ -168,8 +208,8 @@ def _design_text(design: dict, setup) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("which", nargs="*", default=["cycle", "sweep", "sobol", "design"],
-                        choices=["cycle", "sweep", "sobol", "design"],
+    names = ["cycle", "sweep", "sobol", "design", "mechanism", "animation", "campbell"]
+    parser.add_argument("which", nargs="*", default=names, choices=names,
                         help="figures (default: all)")
     parser.add_argument("--sobol-dir", default=None,
                         help="a finished `jaxdobby sobol` run to plot (its indices.json)")
@@ -183,9 +223,12 @@ def main(argv=None) -> int:
     OUT.mkdir(parents=True, exist_ok=True)
     makers = {"cycle": cycle, "sweep": sweep,
               "sobol": lambda: sobol(sobol_indices(ns.sobol_dir, ns.n)),
-              "design": lambda: design(ns.design_dirs)}
+              "design": lambda: design(ns.design_dirs), "mechanism": mechanism,
+              "animation": animation, "campbell": campbell}
     for name in ns.which:
         fig = makers[name]()
+        if fig is None:  # the maker wrote its own files
+            continue
         path = OUT / f"{name}.png"
         fig.savefig(path, dpi=DPI)
         plt.close(fig)

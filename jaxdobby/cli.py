@@ -7,7 +7,8 @@ Commands (``jaxdobby COMMAND --help`` for each):
 * ``sweep`` — the source study's one-at-a-time parameter studies;
 * ``sobol`` — Sobol sensitivity indices from batched, sharded runs;
 * ``optimize`` — gradient-based design of the bending arm;
-* ``beam`` — the natural frequencies and mode shapes of the default bending arm.
+* ``beam`` — the natural frequencies and mode shapes of the default bending arm;
+* ``campbell`` — the resonance map (coupled frequencies, pick-rate harmonics, deviation).
 
 The command line speaks the users' units (mm, r/min, N) and converts to SI at this boundary.
 It is the only place that switches JAX to float64 and the only place that prints. Bad input
@@ -122,10 +123,12 @@ def setup_from_args(ns: argparse.Namespace):
 
 
 def _simulate(ns: argparse.Namespace) -> int:
+    from .pictures.command import simulate_pictures
     from .report import dumps, summary_table, write_run
-    from .simulate import stored_report
+    from .simulate import simulate, stored_report
 
     setup, options = setup_from_args(ns)
+    pictures = simulate_pictures(ns)  # checks the picture flags before the run
     _status("solving the periodic steady state (a first run of a configuration compiles it)...")
     cache = _cache_dir()
     result, series = stored_report(setup, options,
@@ -133,6 +136,13 @@ def _simulate(ns: argparse.Namespace) -> int:
     if ns.out:
         paths = write_run(ns.out, result, series, figures=not ns.no_figures)
         _status(f"wrote {len(paths)} files to {ns.out}")
+
+    def run():  # the animation needs the whole run (modes, shapes): solved again, in Python
+        return simulate(setup.machine, setup.operating, method=options.method,
+                        steps=options.steps)
+
+    for path in pictures(setup.machine, run):  # the drawing (--out), the animation (--animate)
+        _status(f"wrote {path}")
     if ns.json:
         print(dumps(result))
     else:
@@ -210,6 +220,12 @@ def _sobol(argv: Sequence[str]) -> int:
     return sobol_main(argv)
 
 
+def _pictures_command():
+    from .pictures import command
+
+    return command
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxdobby",
@@ -221,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", metavar="DIR", help="write summary.json, timeseries.csv, figures")
     sim.add_argument("--json", action="store_true", help="print the summary as JSON")
     sim.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
+    _pictures_command().add_simulate_arguments(sim)
     sim.set_defaults(run=_simulate)
     sweep = sub.add_parser("sweep", help="one-at-a-time study of one parameter (vmapped)",
                            description="Default values: modes 1-8; speed 400-1200 r/min; "
@@ -241,6 +258,10 @@ def build_parser() -> argparse.ArgumentParser:
                                      "gradients, bounds and constraints.")
     _add_optimize_arguments(opt)
     opt.set_defaults(run=_optimize)
+    camp = sub.add_parser("campbell", help="resonance map: coupled frequencies, pick-rate "
+                          "harmonics and the deviation against loom speed")
+    _pictures_command().add_campbell_arguments(camp)
+    camp.set_defaults(run=_pictures_command().run_campbell)
     beam = sub.add_parser("beam", help="natural frequencies of the default bending arm")
     beam.add_argument("--modes", type=int, default=8, help="number of modes to list (1-30)")
     beam.set_defaults(run=_beam)
