@@ -26,6 +26,7 @@ from collections.abc import Sequence
 from .errors import InputError
 
 EXIT_BAD_INPUT = 2
+EXIT_SOLVER_FAILURE = 1
 
 
 CPU_XLA_FLAGS = "--xla_cpu_use_fusion_emitters=false"
@@ -124,12 +125,17 @@ def setup_from_args(ns: argparse.Namespace):
 def _simulate(ns: argparse.Namespace) -> int:
     from .report import dumps, summary_table, write_run
     from .simulate import stored_report
+    from .validity import failure, warning_lines
 
     setup, options = setup_from_args(ns)
     _status("solving the periodic steady state (a first run of a configuration compiles it)...")
     cache = _cache_dir()
     result, series = stored_report(setup, options,
                                    directory=None if cache is None else cache / "programs")
+    reason = failure(result)
+    if reason is not None:
+        print(f"jaxdobby simulate: {reason}", file=sys.stderr)
+        return EXIT_SOLVER_FAILURE
     if ns.out:
         paths = write_run(ns.out, result, series, figures=not ns.no_figures)
         _status(f"wrote {len(paths)} files to {ns.out}")
@@ -138,7 +144,9 @@ def _simulate(ns: argparse.Namespace) -> int:
     else:
         print("jaxdobby simulate: periodic steady state of one heald-frame cycle\n")
         print(summary_table(result))
-    return 0 if result["converged"] else 1
+        if result["warnings"]:
+            print("\n" + warning_lines(result["warnings"]))
+    return 0 if result["converged"] else EXIT_SOLVER_FAILURE
 
 
 def _sweep(ns: argparse.Namespace) -> int:
