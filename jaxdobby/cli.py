@@ -255,6 +255,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _attach_negative_values(argv: list[str]) -> list[str]:
+    """``--speed -1e-3`` as ``--speed=-1e-3``: argparse takes a value that starts with '-' and
+    is not a plain decimal (``-1e-3``, ``-inf``) for an option and fails with a usage message;
+    attached, it reaches the range check, which names the field."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in SINGLE_VALUE_FLAGS and i + 1 < len(argv) and argv[i + 1].startswith("-"):
+            try:
+                float(argv[i + 1])
+            except ValueError:
+                pass
+            else:
+                out.append(f"{argv[i]}={argv[i + 1]}")
+                i += 2
+                continue
+        out.append(argv[i])
+        i += 1
+    return out
+
+
+SINGLE_VALUE_FLAGS = ("--speed", "--warp-force", "--stroke", "--thickness", "--modes")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``jaxdobby`` console script; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -262,7 +285,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv and argv[0] == "sobol":
         return _sobol(argv[1:])
     parser = build_parser()
-    ns = parser.parse_args(argv)
+    ns = parser.parse_args(_attach_negative_values(argv))
     try:
         return ns.run(ns)
     except InputError as err:
