@@ -155,6 +155,7 @@ def _sweep(ns: argparse.Namespace) -> int:
     from .io import write_text
     from .plots import overlay_figure, plt
     from .sweep import STUDIES, csv_table, markdown_table, prepare_sweep, trend_figure
+    from .validity import tally, tally_lines
 
     setup, options = setup_from_args(ns)
     values = ns.values if ns.values else STUDIES.get(ns.parameter)
@@ -179,11 +180,16 @@ def _sweep(ns: argparse.Namespace) -> int:
         fig.savefig(out / "sweep_trends.png", dpi=120)
         plt.close(fig)
         _status(f"wrote the table and figures to {out}")
+    warned = tally((f"{v:g}", r["warnings"]) for v, r in zip(result.values, result.rows))
     if ns.json:
         print(_json.dumps({"parameter": result.parameter, "unit": result.unit,
-                           "values": result.values, "runs": result.rows}, indent=2))
+                           "values": result.values, "runs": result.rows, "warnings": warned},
+                          indent=2))
     else:
         print(markdown_table(result))
+        if warned:
+            print(f"\nvalidity warnings, by {result.parameter} [{result.unit}] (each run's "
+                  "in --json):\n" + tally_lines(warned, len(result.rows)))
     return 0 if all(r["converged"] for r in result.rows) else 1
 
 

@@ -178,3 +178,27 @@ def failure(summary: dict) -> str | None:
             f"{summary.get('newton_iterations', '?')} Newton iterations and left non-finite "
             f"{', '.join(bad[:3])}{' …' if len(bad) > 3 else ''} (the input is outside what the "
             "solver handles: see the README's Limits)")
+
+
+def tally(labelled) -> dict[str, dict]:
+    """Warnings of many runs, by code: ``{code: {"count", "samples"}}`` from ``(label,
+    warnings)`` pairs (a label per run: a swept value, a sample row), in :data:`CODES` order.
+    Each run counts once per code (a run with two resonant harmonics is one resonant run)."""
+    out: dict[str, dict] = {}
+    for label, warnings in labelled:
+        for code in dict.fromkeys(w["code"] for w in warnings):
+            entry = out.setdefault(code, {"count": 0, "samples": []})
+            entry["count"] += 1
+            entry["samples"].append(label)
+    order = {c: i for i, c in enumerate(CODES)}
+    return dict(sorted(out.items(), key=lambda kv: order.get(kv[0], len(order))))
+
+
+def tally_lines(counts: dict[str, dict], total: int, what: str = "runs", limit: int = 12) -> str:
+    """:func:`tally` as text lines: ``warning [code]: k of n runs: a, b, c …``."""
+    lines = []
+    for code, entry in counts.items():
+        shown = ", ".join(str(s) for s in entry["samples"][:limit])
+        more = " …" if len(entry["samples"]) > limit else ""
+        lines.append(f"  warning [{code}]: {entry['count']} of {total} {what}: {shown}{more}")
+    return "\n".join(lines)

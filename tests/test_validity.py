@@ -25,7 +25,7 @@ from jaxdobby.parameters import SPEED_RANGE, Setup, apply
 from jaxdobby.programs import call_stored
 from jaxdobby.simulate import report_program, simulate, summary, summary_of
 from jaxdobby.validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, RESONANCE_BAND, failure,
-                               warnings_of)
+                               tally, tally_lines, warnings_of)
 
 
 @pytest.fixture(scope="module")
@@ -157,3 +157,13 @@ def test_the_supported_speed_range_converges(speed, thickness):
     s = summary(run)
     assert s["converged"] and failure(s) is None, (speed, thickness, s["periodicity_residual"])
     assert np.all(jnp.isfinite(run.series.heald_flexible))
+
+
+def test_tally_counts_each_run_once_per_code_and_names_it():
+    res = {"code": "resonance"}
+    runs = [("400", []), ("1200", [res, res, {"code": "arm_deflection"}]), ("2000", [res])]
+    counts = tally(runs)
+    # CODES order (arm_deflection before resonance); two resonant harmonics are one run
+    assert list(counts) == ["arm_deflection", "resonance"]
+    assert counts["resonance"] == {"count": 2, "samples": ["1200", "2000"]}
+    assert tally_lines(counts, 3).splitlines()[1] == "  warning [resonance]: 2 of 3 runs: 1200, 2000"
