@@ -202,3 +202,30 @@ def tally_lines(counts: dict[str, dict], total: int, what: str = "runs", limit: 
         more = " …" if len(entry["samples"]) > limit else ""
         lines.append(f"  warning [{code}]: {entry['count']} of {total} {what}: {shown}{more}")
     return "\n".join(lines)
+
+
+def sample_warnings(names, samples, outputs, stroke_mm: float) -> dict[str, dict]:
+    """Per-sample warnings of a Sobol design from its outputs (users' units), as
+    ``{code: {"count", "samples", "limit"}}`` with the design's row indices: ``not_converged``
+    (a failed sample, ``ok`` False) and ``deviation_of_stroke`` (``deviation_pp_mm`` over the
+    row's stroke — sampled, or ``stroke_mm`` — above :data:`DEVIATION_LIMIT`). The batch
+    evaluator returns only these metrics, so the arm's deflection, the workspace and the
+    resonance checks of a single run are not available per sample. Empty for a model without
+    ``deviation_pp_mm``."""
+    if "deviation_pp_mm" not in outputs:
+        return {}
+    samples = np.asarray(samples)
+    dev = np.asarray(outputs["deviation_pp_mm"], dtype=float)
+    stroke = samples[:, list(names).index("stroke")] if "stroke" in names else stroke_mm
+    ok = np.asarray(outputs.get("ok", np.ones(dev.shape, bool)), dtype=bool)
+    out = {}
+    failed = np.flatnonzero(~ok)
+    if failed.size:
+        out["not_converged"] = {"count": int(failed.size), "samples": failed.tolist(),
+                                "limit": None}
+    share = np.abs(dev) / stroke
+    large = np.flatnonzero(ok & ~(share <= DEVIATION_LIMIT))
+    if large.size:
+        out["deviation_of_stroke"] = {"count": int(large.size), "samples": large.tolist(),
+                                      "limit": 100 * DEVIATION_LIMIT}
+    return out

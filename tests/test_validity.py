@@ -25,7 +25,7 @@ from jaxdobby.parameters import SPEED_RANGE, Setup, apply
 from jaxdobby.programs import call_stored
 from jaxdobby.simulate import report_program, simulate, summary, summary_of
 from jaxdobby.validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, RESONANCE_BAND, failure,
-                               tally, tally_lines, warnings_of)
+                               sample_warnings, tally, tally_lines, warnings_of)
 
 
 @pytest.fixture(scope="module")
@@ -167,3 +167,16 @@ def test_tally_counts_each_run_once_per_code_and_names_it():
     assert list(counts) == ["arm_deflection", "resonance"]
     assert counts["resonance"] == {"count": 2, "samples": ["1200", "2000"]}
     assert tally_lines(counts, 3).splitlines()[1] == "  warning [resonance]: 2 of 3 runs: 1200, 2000"
+
+
+def test_sobol_sample_warnings_name_the_rows():
+    # rows: stroke sampled (third column); deviation 7.5 mm is 5.4 % of 140 mm, 3 mm is 2.1 %
+    names = ("speed", "warp_force", "stroke", "thickness")
+    samples = np.array([[800, 690, 140, 6], [1200, 690, 140, 6], [1200, 690, 80, 6],
+                        [400, 690, 140, 6]], dtype=float)
+    outputs = {"deviation_pp_mm": np.array([3.0, 7.5, 3.0, np.nan]),
+               "ok": np.array([True, True, True, False])}
+    got = sample_warnings(names, samples, outputs, stroke_mm=140.0)
+    assert got["deviation_of_stroke"]["samples"] == [1]  # 3/80 = 3.75 % is inside
+    assert got["not_converged"] == {"count": 1, "samples": [3], "limit": None}
+    assert sample_warnings(names, samples, {"y": np.zeros(4)}, 140.0) == {}
