@@ -58,7 +58,10 @@ TRANSMISSION_LIMIT = 20.0
 RESONANCE_BAND = 0.03
 """Relative distance of a cycle harmonic from a coupled frequency that counts as resonance."""
 HARMONICS = 12
-"""Cycle harmonics k·n/120 checked for resonance, k = 1…HARMONICS (six pick harmonics)."""
+"""Cycle harmonics k·n/120 checked for resonance, k = 1…HARMONICS (six pick harmonics): above
+the 12th, each harmonic of the rigid heald-frame acceleration over a cycle is below 1 % of the
+largest (measured on the default machine: 1.2 % at k = 12, 0.4 % at 13, at most 0.7 % beyond;
+the rigid motion's shape does not depend on the speed)."""
 PHASES = 24
 """Phases of the cycle at which the coupled frequencies are evaluated."""
 
@@ -137,6 +140,8 @@ def warnings_of(arrays: dict, tolerance: float = 1e-6) -> list[dict]:
             f"{mu:.1f}° on the flexible motion (limit {TRANSMISSION_LIMIT:g}°): the double "
             "rocker is near its dead centre", mu, TRANSMISSION_LIMIT))
     out.extend(_resonances(arrays))
+    # stress: once report_arrays carries the arm's peak stress, compare it here with the
+    # material's yield strength (code "stress", value and limit in MPa).
     return out
 
 
