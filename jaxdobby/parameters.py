@@ -117,13 +117,14 @@ def _p(name, section, unit, scale, limits, description, accessors, key_unit=None
 
 
 INF = math.inf
-SPEED_RANGE = (100.0, 2000.0)
+SPEED_RANGE = (100.0, 1800.0)
 """Supported loom speeds [r/min], both included: where the default collocation solver's steady
-state converges for arm thicknesses 3–8 mm (README, Limits). Below ~70 r/min its 432 steps per
-cycle no longer resolve the arm's first mode (> 1 period per step) and the shooting stalls, while
-the answer is quasi-static there anyway (the deviation at 100 r/min equals the 70 r/min one to
-three digits); above ~2500 r/min it fails (NaN at 8 mm), and already at 1200 r/min the default
-arm is outside the small-deformation limits (:mod:`jaxdobby.validity`)."""
+state converges for arm thicknesses 3–8 mm (README, Limits; ``pytest -m slow
+tests/test_validity.py``). Below ~70 r/min its 432 steps per cycle each span more than a period
+of the arm's first mode and the shooting stalls, while the answer there is quasi-static anyway
+(the deviation at 100 r/min equals the 70 r/min one to three digits); at 2000 r/min a 3 mm arm
+fails (NaN), at 2500 an 8 mm one — far beyond the small-deformation limits, which the default
+arm leaves already near 1000 r/min (:mod:`jaxdobby.validity`)."""
 PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
     _p("speed", "operating", "r/min", RPM, SPEED_RANGE, "loom speed", _operating("speed"), "rpm",
        bounds=(400.0, 1200.0), low_closed=True, high_closed=True),
