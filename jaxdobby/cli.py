@@ -27,6 +27,7 @@ from collections.abc import Sequence
 from .errors import InputError
 
 EXIT_BAD_INPUT = 2
+EXIT_SOLVER_FAILURE = 1
 
 
 CPU_XLA_FLAGS = "--xla_cpu_use_fusion_emitters=false"
@@ -126,6 +127,7 @@ def _simulate(ns: argparse.Namespace) -> int:
     from .pictures.command import simulate_pictures
     from .report import dumps, summary_table, write_run
     from .simulate import simulate, stored_report
+    from .validity import failure, warning_lines
 
     setup, options = setup_from_args(ns)
     pictures = simulate_pictures(ns)  # checks the picture flags before the run
@@ -133,6 +135,10 @@ def _simulate(ns: argparse.Namespace) -> int:
     cache = _cache_dir()
     result, series = stored_report(setup, options,
                                    directory=None if cache is None else cache / "programs")
+    reason = failure(result)
+    if reason is not None:
+        print(f"jaxdobby simulate: {reason}", file=sys.stderr)
+        return EXIT_SOLVER_FAILURE
     if ns.out:
         paths = write_run(ns.out, result, series, figures=not ns.no_figures)
         _status(f"wrote {len(paths)} files to {ns.out}")
@@ -148,7 +154,9 @@ def _simulate(ns: argparse.Namespace) -> int:
     else:
         print("jaxdobby simulate: periodic steady state of one heald-frame cycle\n")
         print(summary_table(result))
-    return 0 if result["converged"] else 1
+        if result["warnings"]:
+            print("\n" + warning_lines(result["warnings"]))
+    return 0 if result["converged"] else EXIT_SOLVER_FAILURE
 
 
 def _sweep(ns: argparse.Namespace) -> int:
@@ -157,6 +165,7 @@ def _sweep(ns: argparse.Namespace) -> int:
     from .io import write_text
     from .plots import overlay_figure, plt
     from .sweep import STUDIES, csv_table, markdown_table, prepare_sweep, trend_figure
+    from .validity import tally, tally_lines
 
     setup, options = setup_from_args(ns)
     values = ns.values if ns.values else STUDIES.get(ns.parameter)
@@ -181,11 +190,16 @@ def _sweep(ns: argparse.Namespace) -> int:
         fig.savefig(out / "sweep_trends.png", dpi=120)
         plt.close(fig)
         _status(f"wrote the table and figures to {out}")
+    warned = tally((f"{v:g}", r["warnings"]) for v, r in zip(result.values, result.rows))
     if ns.json:
         print(_json.dumps({"parameter": result.parameter, "unit": result.unit,
-                           "values": result.values, "runs": result.rows}, indent=2))
+                           "values": result.values, "runs": result.rows, "warnings": warned},
+                          indent=2))
     else:
         print(markdown_table(result))
+        if warned:
+            print(f"\nvalidity warnings, by {result.parameter} [{result.unit}] (each run's "
+                  "in --json):\n" + tally_lines(warned, len(result.rows)))
     return 0 if all(r["converged"] for r in result.rows) else 1
 
 
@@ -268,6 +282,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _attach_negative_values(argv: list[str]) -> list[str]:
+    """``--speed -1e-3`` as ``--speed=-1e-3``: argparse takes a value that starts with '-' and
+    is not a plain decimal (``-1e-3``, ``-inf``) for an option and fails with a usage message;
+    attached, it reaches the range check, which names the field."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in SINGLE_VALUE_FLAGS and i + 1 < len(argv) and argv[i + 1].startswith("-"):
+            try:
+                float(argv[i + 1])
+            except ValueError:
+                pass
+            else:
+                out.append(f"{argv[i]}={argv[i + 1]}")
+                i += 2
+                continue
+        out.append(argv[i])
+        i += 1
+    return out
+
+
+SINGLE_VALUE_FLAGS = ("--speed", "--warp-force", "--stroke", "--thickness", "--modes")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``jaxdobby`` console script; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -275,7 +312,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv and argv[0] == "sobol":
         return _sobol(argv[1:])
     parser = build_parser()
-    ns = parser.parse_args(argv)
+    ns = parser.parse_args(_attach_negative_values(argv))
     try:
         return ns.run(ns)
     except InputError as err:

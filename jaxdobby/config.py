@@ -86,7 +86,8 @@ def check_value(p: Parameter, value, where: str) -> list[float]:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise InputError(f"{where} must be a number [{p.unit}], got {v!r}")
         low, high = p.limits
-        ok = (math.isfinite(v) and (v >= low if p.low_closed else v > low) and v < high)
+        ok = (math.isfinite(v) and (v >= low if p.low_closed else v > low)
+              and (v <= high if p.high_closed else v < high))
         if not ok:
             raise InputError(f"{where} = {v:g} {p.unit} is outside the valid range "
                              f"({p.range_text()} {p.unit})".replace(" )", ")"))

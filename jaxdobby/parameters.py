@@ -48,6 +48,7 @@ class Parameter:
         set: (Setup, SI value) → Setup.
         bounds: default Sobol bounds in users' units (None: not in a default study).
         low_closed: whether ``limits[0]`` itself is valid.
+        high_closed: whether ``limits[1]`` itself is valid.
     """
 
     name: str
@@ -61,13 +62,14 @@ class Parameter:
     set: Callable[[Setup, Array], Setup]
     bounds: tuple[float, float] | None = None
     low_closed: bool = False
+    high_closed: bool = False
 
     def range_text(self) -> str:
         low, high = self.limits
         if math.isinf(low) and math.isinf(high):
             return "any finite number"
         lo = f"{'>=' if self.low_closed else '>'} {low:g}"
-        return lo if math.isinf(high) else f"{lo} and < {high:g}"
+        return lo if math.isinf(high) else f"{lo} and {'<=' if self.high_closed else '<'} {high:g}"
 
 
 def _operating(field):
@@ -106,18 +108,26 @@ def _stroke():
 
 
 def _p(name, section, unit, scale, limits, description, accessors, key_unit=None, bounds=None,
-       low_closed=False):
+       low_closed=False, high_closed=False):
     get, set_ = accessors
     suffix = key_unit if key_unit is not None else unit
     key = f"{name}_{suffix}" if suffix else name
     return Parameter(name, section, key, unit, scale, limits, description, get, set_, bounds,
-                     low_closed)
+                     low_closed, high_closed)
 
 
 INF = math.inf
+SPEED_RANGE = (100.0, 1800.0)
+"""Supported loom speeds [r/min], both included: where the default collocation solver's steady
+state converges for arm thicknesses 3–8 mm (README, Limits; ``pytest -m slow
+tests/test_validity.py``). Below ~70 r/min its 432 steps per cycle each span more than a period
+of the arm's first mode and the shooting stalls, while the answer there is quasi-static anyway
+(the deviation at 100 r/min equals the 70 r/min one to three digits); at 2000 r/min a 3 mm arm
+fails (NaN), at 2500 an 8 mm one — far beyond the small-deformation limits, which the default
+arm leaves already near 1000 r/min (:mod:`jaxdobby.validity`)."""
 PARAMETERS: dict[str, Parameter] = {p.name: p for p in [
-    _p("speed", "operating", "r/min", RPM, (0, INF), "loom speed", _operating("speed"), "rpm",
-       bounds=(400.0, 1200.0)),
+    _p("speed", "operating", "r/min", RPM, SPEED_RANGE, "loom speed", _operating("speed"), "rpm",
+       bounds=(400.0, 1200.0), low_closed=True, high_closed=True),
     _p("warp_force", "operating", "N", 1.0, (0, INF), "peak warp-yarn force on the heald frame",
        _operating("warp_force"), "n", bounds=(345.0, 1035.0), low_closed=True),
     _p("stroke", "stroke", "mm", MM, (0, INF), "heald-frame stroke (moves the link-11 joint)",

@@ -51,6 +51,7 @@ from .machine import Machine, OperatingPoint
 from .metrics import cycle_metrics
 from .outputs import Timeseries, coupled_frequencies, flexible_outputs, rigid_outputs
 from .steady_state import ShootingResult, periodic_state, relative_residual
+from .validity import validity_arrays, warnings_of
 
 METHODS = ("collocation", "rk4", "adaptive")
 
@@ -230,6 +231,7 @@ def report_arrays(run: Simulation) -> dict[str, Array]:
                natural_frequencies=run.natural_frequencies,
                arm_frequencies=model.body.frequencies_hz, converged=run.converged,
                periodicity=run.periodicity, iterations=run.shooting.iterations)
+    out.update(validity_arrays(run))
     return out
 
 
@@ -263,6 +265,7 @@ def summary_of(arrays: dict, machine: Machine) -> dict[str, float | list | bool]
         "converged": bool(arrays["converged"]),
         "periodicity_residual": float(arrays["periodicity"]),
         "newton_iterations": int(arrays["iterations"]),
+        "warnings": warnings_of(arrays, _SIMULATE_DEFAULTS["tolerance"]),
     }
 
 

@@ -174,4 +174,4 @@ def test_console_script():
                          text=True, env=env, timeout=600)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert bad.stderr.strip().splitlines() == [
-        "jaxdobby simulate: error: --speed = -1 r/min is outside the valid range (> 0 r/min)"]
+        "jaxdobby simulate: error: --speed = -1 r/min is outside the valid range (>= 100 and <= 1800 r/min)"]

@@ -87,7 +87,7 @@ def _dobby_spec():
      "parameter 'speed': bounds must be finite numbers [r/min]"),
     ("[parameters]\nspeed = [nan, 1200]", "parameter 'speed': bounds must be finite numbers"),
     ("[parameters]\nspeed = [-100, 1200]",
-     "parameter 'speed': bounds must lie in (0.0, inf) [r/min]"),
+     "parameter 'speed': bounds must lie in (100.0, 1800.0) [r/min]"),
     ("[parameters]\nspeed = [400]",
      "parameter 'speed': bounds must be two numbers [lower, upper] [r/min]"),
     ("[parameters]\nspeed = ['a', 'b']", "parameter 'speed': bounds must be two numbers"),

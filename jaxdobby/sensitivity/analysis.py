@@ -63,6 +63,8 @@ class SobolResult:
         failures: the failed samples and how the indices were affected.
         second_order, conf_level, num_resamples, seed: the analysis settings.
         run: free-form facts about the run (samples, chunk size, devices, …) for the JSON.
+        warnings: per-sample validity warnings, ``{code: {"count", "samples", "limit"}}``
+            (:func:`jaxdobby.validity.sample_warnings`; samples are design row indices).
     """
 
     space: ParameterSpace
@@ -73,6 +75,7 @@ class SobolResult:
     num_resamples: int
     seed: int | None
     run: Mapping = dataclasses.field(default_factory=dict)
+    warnings: Mapping = dataclasses.field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """JSON-ready form: indices keyed by parameter name, S2 as a list of pairs."""
@@ -91,7 +94,8 @@ class SobolResult:
                 "analysis": {"n": self.failures.n, "n_used": self.failures.n_used,
                              "second_order": self.second_order, "conf_level": self.conf_level,
                              "num_resamples": self.num_resamples, "seed": self.seed},
-                "run": dict(self.run), "failures": self.failures.to_dict(), "metrics": metrics}
+                "run": dict(self.run), "failures": self.failures.to_dict(),
+                "warnings": dict(self.warnings), "metrics": metrics}
 
     def to_json(self) -> str:
         """The indices as indented JSON (see :meth:`to_dict`)."""
@@ -118,6 +122,12 @@ class SobolResult:
         w = max(len("parameter"), *(len(n) for n in names))
         u = max(len("unit"), *(len(x) for x in units))
         lines = [f"Sobol indices ({self.conf_level:.0%} intervals); {self.failures.summary}"]
+        rows = self.failures.n * self.space.rows_per_base_sample(self.second_order)
+        for code, w in self.warnings.items():
+            shown = ", ".join(map(str, w["samples"][:8])) + (" …" if w["count"] > 8 else "")
+            kept = "" if code == "not_converged" else ", still in the indices"
+            lines.append(f"warning [{code}]: {w['count']} of {rows} samples (rows {shown}; all "
+                         f"in indices.json){kept}")
         for m, ix in self.metrics.items():
             lines += ["", m + (f"  ({ix.note})" if ix.note else ""),
                       f"  {'parameter':<{w}}  {'unit':<{u}}  {'S1':>17}  {'ST':>17}"]

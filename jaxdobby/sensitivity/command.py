@@ -272,6 +272,8 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
         if writer:
             write_json(out / "failures.json", e.to_dict())
         raise
+    result = dataclasses.replace(result, warnings=_sample_warnings(space, samples,
+                                                                   evaluation.outputs))
     if writer:
         files.append(write_json(out / "indices.json", result.to_dict()))
         text = result.to_csv()
@@ -279,6 +281,19 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
         if config.figures:
             files += save_figures(result, out / "figures")
     return SobolRun(result, evaluation, space, out, tuple(files), writer)
+
+
+def _sample_warnings(space, samples, outputs) -> dict:
+    """Per-sample validity warnings (:func:`jaxdobby.validity.sample_warnings`); a stroke not
+    sampled is the default machine's."""
+    from ..validity import sample_warnings
+
+    if "deviation_pp_mm" not in outputs:
+        return {}
+    from ..parameters import Setup
+
+    stroke_mm = float(Setup().machine.stroke()) * 1e3
+    return sample_warnings(space.names, samples, outputs, stroke_mm)
 
 
 def use_cpu_cores(devices: int | None) -> None:

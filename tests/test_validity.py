@@ -1,0 +1,182 @@
+"""Validity warnings (jaxdobby.validity) and the command line at the edges of the model.
+
+Claims: the transmission angle from the traced closure equals the law of cosines on the
+triangle D0–C–P; the deflection ratio equals |Φ_P q|/|p| from the modal coordinates; the
+resonance and deviation checks fire exactly where their closed-form conditions say; a speed
+outside the supported range is one line and exit 2; a solver failure is one line and exit 1
+with nothing on stdout (never a table of nan).
+"""
+
+import json
+import math
+import re
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import equinox as eqx
+
+from jaxdobby.cli import _cache_dir, main
+from jaxdobby.config import RunOptions
+from jaxdobby.dobby import LINK, build_model, rigid_joint_position
+from jaxdobby.parameters import SPEED_RANGE, Setup, apply
+from jaxdobby.programs import call_stored
+from jaxdobby.simulate import report_program, simulate, summary, summary_of
+from jaxdobby.validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, RESONANCE_BAND, failure,
+                               sample_warnings, tally, tally_lines, warnings_of)
+
+
+@pytest.fixture(scope="module")
+def default_run():
+    """(model, report arrays) of the default run, through the command line's stored program
+    (shared with the command-line tests: no tracing of the dynamics once stored)."""
+    setup = Setup()
+    name, fn, args, key = report_program(setup, RunOptions())
+    arrays = call_stored(name, fn, args, static_key=key, directory=_cache_dir() / "programs")
+    model = eqx.filter_jit(build_model)(setup.machine, setup.operating)
+    return model, {k: np.asarray(v) for k, v in arrays.items()}
+
+
+def test_default_machine_is_inside_every_limit(default_run):
+    model, arrays = default_run
+    # the default machine (DESIGN §6, 800 r/min) is the study's design point: no warning
+    assert summary_of(arrays, model.machine)["warnings"] == []
+    # deflection ratio: |Φ_P q| in the body frame (rotation-free) over |p|, from the modal
+    # coordinates rather than the inertial link-point deviation the check uses
+    q = arrays["series.modal"]
+    rows = np.asarray(model.body.points[LINK])
+    ratio = np.max(np.linalg.norm(q @ rows.T, axis=1)) / np.linalg.norm(model.link_joint)
+    np.testing.assert_allclose(arrays["validity.deflection_ratio"], ratio, rtol=1e-10)
+    assert 0.5 * DEFLECTION_LIMIT < ratio < DEFLECTION_LIMIT  # measured 0.86 %
+
+
+def test_transmission_angle_is_the_law_of_cosines(default_run):
+    model, arrays = default_run
+    chain = model.chain
+    joint = jax.vmap(lambda t: rigid_joint_position(model, t))(arrays["series.t"])
+    joint = np.asarray(joint) + arrays["series.link_point_deviation"]
+    # triangle D0 (blade pivot), C (blade pin), P (link-11 joint): sides r_in, L11, |P − D0|
+    d = np.linalg.norm(joint - np.asarray(chain.blade_pivot), axis=1)
+    r, l11 = float(chain.blade_input_arm), float(chain.link11_length)
+    cos_mu = (r**2 + l11**2 - d**2) / (2 * r * l11)
+    np.testing.assert_allclose(arrays["validity.sin_transmission"],
+                               np.min(np.sqrt(1 - cos_mu**2)), rtol=1e-9)
+
+
+def _arrays(**changes):
+    """Synthetic report arrays inside every limit (speed 800 r/min, f₁ 100…110 Hz)."""
+    base = {"converged": np.array(True), "periodicity": np.array(1e-10),
+            "validity.deflection_ratio": np.array(0.005), "stroke": np.array(0.14),
+            "metric.deviation_pp": np.array(0.002), "validity.reach_margin": np.array(1e-2),
+            "validity.sin_transmission": np.array(0.9), "speed": np.array(800 * np.pi / 30),
+            "validity.frequencies": np.array([[100.0, 4000.0], [110.0, 4400.0]])}
+    return dict(base, **{k: np.asarray(v) for k, v in changes.items()})
+
+
+def test_resonance_fires_on_the_cycle_harmonics_in_the_band():
+    # cycle frequency n/120: harmonic 10 at 1260 r/min is 105 Hz, inside 100…110 Hz
+    codes = warnings_of(_arrays(speed=1260 * np.pi / 30))
+    assert [w["code"] for w in codes] == ["resonance"]
+    assert "harmonic 10" in codes[0]["message"] and codes[0]["value"] == pytest.approx(105.0)
+    # 3 % below the band's low end: harmonic 10 at n with 10·n/120 = 100·(1 − 0.03) − 0.1 Hz
+    n = 12 * (100 * (1 - RESONANCE_BAND) - 0.1)
+    assert all("harmonic 10 (" not in w["message"]
+               for w in warnings_of(_arrays(speed=n * np.pi / 30)))
+    # an odd cycle harmonic (not a pick harmonic) counts too: harmonic 11 at 1200 r/min = 110 Hz
+    assert any("harmonic 11 (110.0 Hz)" in w["message"]
+               for w in warnings_of(_arrays(speed=1200 * np.pi / 30)))
+
+
+def test_limits_fire_at_their_thresholds():
+    assert warnings_of(_arrays()) == []
+    just = {"validity.deflection_ratio": 1.01 * DEFLECTION_LIMIT,
+            "metric.deviation_pp": 1.01 * DEVIATION_LIMIT * 0.14,
+            "validity.sin_transmission": math.sin(math.radians(19.0)),
+            "converged": False, "periodicity": 1e-3}
+    got = {w["code"]: w for w in warnings_of(_arrays(**just))}
+    assert set(got) == {"arm_deflection", "deviation_of_stroke", "transmission_angle",
+                        "not_converged"}
+    assert got["deviation_of_stroke"]["value"] == pytest.approx(5.05)
+    assert got["transmission_angle"]["value"] == pytest.approx(19.0)
+    assert warnings_of(_arrays(**{"validity.reach_margin": -1e-6}))[0]["code"] == "workspace"
+
+
+def test_failure_names_the_non_finite_numbers():
+    assert failure({"deviation_pp_mm": 1.0, "natural_frequencies_hz": [1.0]}) is None
+    reason = failure({"deviation_pp_mm": math.nan, "natural_frequencies_hz": [1.0],
+                      "newton_iterations": 9})
+    assert "deviation_pp_mm" in reason and "\n" not in reason
+
+
+def run_cli(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("speed", ["1e-3", "99", "1801", "3000"])
+def test_speed_outside_the_supported_range_is_refused(capsys, speed):
+    code, out, err = run_cli(capsys, "simulate", "--speed", speed)
+    assert code == 2 and out == ""
+    assert err.strip().splitlines() == [
+        f"jaxdobby simulate: error: --speed = {float(speed):g} r/min is outside the valid range "
+        f"(>= {SPEED_RANGE[0]:g} and <= {SPEED_RANGE[1]:g} r/min)"]
+
+
+def test_solver_failure_is_one_line_and_exit_1(capsys):
+    # a warp force of 1 MN (1450× the default) makes the shooting diverge (measured: NaN)
+    code, out, err = run_cli(capsys, "simulate", "--warp-force", "1e6", "--json")
+    assert code == 1 and out == "" and "nan" not in err.lower()
+    lines = [line for line in err.strip().splitlines() if not line.startswith("solving")]
+    assert len(lines) == 1 and "solver failed" in lines[0], err
+
+
+def test_thin_arm_warns_in_json_and_text(capsys):
+    code, out, _ = run_cli(capsys, "simulate", "--thickness", "1", "--json")
+    s = json.loads(out)
+    assert code == 0 and s["converged"]
+    got = {w["code"]: w for w in s["warnings"]}
+    assert {"arm_deflection", "deviation_of_stroke"} <= set(got)
+    # the deviation's share of the stroke from the same summary's numbers
+    assert got["deviation_of_stroke"]["value"] == pytest.approx(
+        100 * s["deviation_pp_mm"] / s["stroke_mm"], rel=1e-12)
+    assert all(set(w) == {"code", "message", "value", "limit"} for w in s["warnings"])
+    code, out, _ = run_cli(capsys, "simulate", "--thickness", "1")
+    assert "warning [arm_deflection]" in out and not re.search(r"\bnan\b", out)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("thickness", [3.0, 6.0, 8.0])
+@pytest.mark.parametrize("speed", SPEED_RANGE)
+def test_the_supported_speed_range_converges(speed, thickness):
+    """The ends of the supported range converge for thin to thick arms (README, Limits)."""
+    setup = apply(Setup(), {"speed": speed * np.pi / 30, "thickness": thickness * 1e-3})
+    run = simulate(setup.machine, setup.operating)
+    s = summary(run)
+    assert s["converged"] and failure(s) is None, (speed, thickness, s["periodicity_residual"])
+    assert np.all(jnp.isfinite(run.series.heald_flexible))
+
+
+def test_tally_counts_each_run_once_per_code_and_names_it():
+    res = {"code": "resonance"}
+    runs = [("400", []), ("1200", [res, res, {"code": "arm_deflection"}]), ("2000", [res])]
+    counts = tally(runs)
+    # CODES order (arm_deflection before resonance); two resonant harmonics are one run
+    assert list(counts) == ["arm_deflection", "resonance"]
+    assert counts["resonance"] == {"count": 2, "samples": ["1200", "2000"]}
+    assert tally_lines(counts, 3).splitlines()[1] == "  warning [resonance]: 2 of 3 runs: 1200, 2000"
+
+
+def test_sobol_sample_warnings_name_the_rows():
+    # rows: stroke sampled (third column); deviation 7.5 mm is 5.4 % of 140 mm, 3 mm is 2.1 %
+    names = ("speed", "warp_force", "stroke", "thickness")
+    samples = np.array([[800, 690, 140, 6], [1200, 690, 140, 6], [1200, 690, 80, 6],
+                        [400, 690, 140, 6]], dtype=float)
+    outputs = {"deviation_pp_mm": np.array([3.0, 7.5, 3.0, np.nan]),
+               "ok": np.array([True, True, True, False])}
+    got = sample_warnings(names, samples, outputs, stroke_mm=140.0)
+    assert got["deviation_of_stroke"]["samples"] == [1]  # 3/80 = 3.75 % is inside
+    assert got["not_converged"] == {"count": 1, "samples": [3], "limit": None}
+    assert sample_warnings(names, samples, {"y": np.zeros(4)}, 140.0) == {}
