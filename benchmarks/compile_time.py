@@ -135,9 +135,7 @@ def figure(rows, path: Path) -> None:
 def markdown(result) -> str:
     cl = result["command_line"]
     lines = ["# Compile time and first answer", "",
-             f"Measured {result['environment'].get('date', '')} on "
-             f"{result['environment'].get('cpu', '')} ({result['environment'].get('cores', '')} "
-             "cores); each number in fresh processes (`benchmarks/compile_time.py`).", ""]
+             "Each number in fresh processes (`benchmarks/compile_time.py`).", ""]
     if cl:
         lines += ["| `jaxdobby simulate` (whole process, wall) | median | all |", "|---|---|---|",
                   f"| cold: empty cache folder | {cl['cold_s']:.1f} s | "
@@ -163,7 +161,8 @@ def main(argv=None) -> int:
     ns = p.parse_args(argv)
     modes = ns.modes or ((1, 4) if ns.quick else DEFAULT_MODES)
     repeats = 1 if ns.quick else ns.repeats
-    result = {"environment": common.environment(), "command_line": None}
+    result = {"benchmark": "compile_time", "environment": common.environment(),
+              "command_line": None}
     if not ns.no_command_line:
         print("jaxdobby simulate, cold and cached ...", flush=True)
         result["command_line"] = command_line(repeats)
@@ -174,6 +173,8 @@ def main(argv=None) -> int:
     out = Path(ns.out)
     out.mkdir(parents=True, exist_ok=True)
     name = "compile_time_quick" if ns.quick else "compile_time"
+    result["markdown"] = markdown(result).split("\n", 2)[2].rsplit("\n\n![", 1)[0]
+    result["figure"] = f"{name}.png"
     (out / f"{name}.json").write_text(json.dumps(result, indent=1))
     (out / f"{name}.md").write_text(markdown(result))
     figure(result["modes"], out / f"{name}.png")
