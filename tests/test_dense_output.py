@@ -41,20 +41,15 @@ def test_collocation_outputs_equal_the_autodiff_kinematics():
     (jaxdobby.batch.dense.outputs_at); jaxdobby.outputs computes the same quantities from the
     autodiff kinematics of jaxdobby.dobby (loop closures differentiated by jax.jvp, q̈ from
     equations_at). Two independent implementations of the same definitions at the same states
-    (q, q̇) of one run at 1200 r/min with the opposing warp law (the one with a sign to get
-    right): equal to round-off, 1e-9 of each series' amplitude (closed-form derivatives against
-    nested forward-mode ones). That law turns at mid-cycle, a discontinuity the two may place
-    on either side of the sample there: that sample is left out."""
-    import equinox as eqx
+    (q, q̇) of the default run: equal to round-off, 1e-9 of each series' amplitude (closed-form
+    derivatives against nested forward-mode ones; measured ≤ 3e-11)."""
     import jax
 
-    from jaxdobby import Machine, OperatingPoint, simulate
+    from jaxdobby import simulate
     from jaxdobby.dobby import rigid_state
     from jaxdobby.outputs import flexible_outputs, rigid_outputs
 
-    warp_law = "opposing"
-    run = simulate(Machine.default(warp_law=warp_law),
-                   OperatingPoint.from_users_units(speed_rpm=1200.0))
+    run = simulate()
     model, series = run.model, run.series
 
     @jax.jit
@@ -63,14 +58,8 @@ def test_collocation_outputs_equal_the_autodiff_kinematics():
         out = jax.vmap(lambda r, a, b: flexible_outputs(model, r, a, b))(rigid, q, qd)
         return dict(out, **rigid_outputs(model, ts))
 
-    from jaxdobby.batch.dense import steady_cycle
-
-    dense = eqx.filter_jit(steady_cycle)(model, 432)
-    assert np.array_equal(dense.q, series.modal)
-    want = reference(dense.time, dense.q, dense.qdot)
-    keep = np.ones(len(series.t), bool)
-    keep[len(keep) // 2] = False
+    want = reference(series.t, series.modal, series.modal_rate)
     for key, value in want.items():
-        got, ref = np.asarray(getattr(series, key))[keep], np.asarray(value)[keep]
+        got, ref = np.asarray(getattr(series, key)), np.asarray(value)
         scale = np.max(np.abs(ref))
         assert np.max(np.abs(got - ref)) <= 1e-9 * scale, key
