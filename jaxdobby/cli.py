@@ -126,17 +126,30 @@ def _simulate(ns: argparse.Namespace) -> int:
     from .simulate import stored_report
 
     setup, options = setup_from_args(ns)
+    if ns.lift_plan is not None:
+        from .weave.plan import parse_plan
+
+        parse_plan(ns.lift_plan, field="--lift-plan")
+        options.lift_plan = ns.lift_plan.strip()
     _status("solving the periodic steady state (a first run of a configuration compiles it)...")
     cache = _cache_dir()
     result, series = stored_report(setup, options,
                                    directory=None if cache is None else cache / "programs")
     if ns.out:
-        paths = write_run(ns.out, result, series, figures=not ns.no_figures)
+        pick = None
+        if "lift_plan" in result:
+            from .weave.metrics import pick_of
+
+            pick = pick_of(series.t, series.t[-1], result["picks"],
+                           float(setup.machine.chain.dwell))
+        paths = write_run(ns.out, result, series, figures=not ns.no_figures, pick=pick)
         _status(f"wrote {len(paths)} files to {ns.out}")
     if ns.json:
         print(dumps(result))
     else:
-        print("jaxdobby simulate: periodic steady state of one heald-frame cycle\n")
+        print("jaxdobby simulate: periodic steady state of one heald-frame cycle"
+              + (f" (lift plan {result['lift_plan']}, repeat of {result['picks']} picks)"
+                 if "lift_plan" in result else "") + "\n")
         print(summary_table(result))
     return 0 if result["converged"] else 1
 
@@ -218,6 +231,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     sim = sub.add_parser("simulate", help="one steady-state run (the default machine by default)")
     _add_model_arguments(sim)
+    sim.add_argument("--lift-plan", metavar="0/1...",
+                     help="the frame's lift sequence over the repeat, one 0/1 per pick (1 = up "
+                          "in that pick's shed), e.g. 1100 (default 10: plain weave)")
     sim.add_argument("--out", metavar="DIR", help="write summary.json, timeseries.csv, figures")
     sim.add_argument("--json", action="store_true", help="print the summary as JSON")
     sim.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
