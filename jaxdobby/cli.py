@@ -192,6 +192,12 @@ def _sweep(ns: argparse.Namespace) -> int:
     return 0 if all(r["converged"] for r in result.rows) else 1
 
 
+def _loom(ns: argparse.Namespace) -> int:
+    from .weave.command import run
+
+    return run(ns, setup_from_args)
+
+
 def _status(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
@@ -257,6 +263,21 @@ def build_parser() -> argparse.ArgumentParser:
                                      "gradients, bounds and constraints.")
     _add_optimize_arguments(opt)
     opt.set_defaults(run=_optimize)
+    loom = sub.add_parser("loom", help="a weave on the whole frame set (vmapped): dwell "
+                                       "vibration per frame and pick",
+                          description="Every frame of a weave (a WIF file or --weave) over the "
+                                      "repeat, in one vmapped batch; strokes by the clean-shed "
+                                      "rule H_i = H_1 L_i/L_1 or --strokes.")
+    from .weave.command import add_arguments as _loom_arguments
+
+    _loom_arguments(loom)
+    for flag, kw in (("--speed", dict(type=float, metavar="RPM", help="loom speed [r/min]")),
+                     ("--warp-force", dict(type=float, metavar="N", help="peak warp force [N]")),
+                     ("--thickness", dict(type=float, metavar="MM", help="arm thickness [mm]")),
+                     ("--modes", dict(type=int, metavar="K", help="modes of the arm, 1-30")),
+                     ("--config", dict(metavar="FILE.toml", help="configuration file"))):
+        loom.add_argument(flag, **kw)
+    loom.set_defaults(run=_loom, stroke=None, coupling=None, warp_law=None, method=None)
     beam = sub.add_parser("beam", help="natural frequencies of the default bending arm")
     beam.add_argument("--modes", type=int, default=8, help="number of modes to list (1-30)")
     beam.set_defaults(run=_beam)
