@@ -125,3 +125,18 @@ def test_loom_cli_named_weave(tmp_path, capsys, monkeypatch):
     assert result["picks"] == 5
     for name in ("loom.json", "frames.csv", "lift_plan.png", "deviation.png"):
         assert (tmp_path / name).exists()
+
+
+def test_rk4_takes_a_plan_as_collocation_does():
+    """The RK4 path reads the same modulator law through the model: its repeat agrees with the
+    collocation path's (the two integrators of the plain weave agree to ~1e-4 on these
+    metrics at their default steps; tests/test_dobby.py)."""
+    machine = Machine.default().replace(n_modes=2)
+    operating = OperatingPoint.from_users_units(speed_rpm=1000.0)
+    col = simulate(machine, operating, lift_plan="1100")
+    rk4 = simulate(machine, operating, lift_plan="1100", method="rk4")
+    assert bool(col.converged) and bool(rk4.converged)
+    for key in ("deviation_pp", "deviation_max", "deviation_min", "acceleration_amp"):
+        assert float(rk4.metrics[key]) == pytest.approx(float(col.metrics[key]), rel=1e-3), key
+    np.testing.assert_allclose(rk4.pick_metrics["dwell_vibration"],
+                               col.pick_metrics["dwell_vibration"], rtol=1e-2, atol=1e-7)

@@ -91,7 +91,7 @@ def table(records: list[dict]) -> str:
     lines = [head, "-" * len(head)]
     for r in records:
         lines.append(f"{r['frame']:>5} {r['stroke_mm']:>9.1f}  {r['lift_plan']:<12} "
-                     f"{r['deviation_pp_mm']:>10.3f} {r['dwell_vibration_max_mm']:>17.3f} "
+                     f"{r['deviation_pp_mm']:>10.3f} {r['dwell_vibration_max_mm']:>17.4f} "
                      f"{r['acceleration_amp_m_s2']:>14.0f}"
                      + ("  (static)" if r["static"] else "")
                      + ("" if r["converged"] else "  NOT CONVERGED"))
@@ -138,8 +138,8 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
         write_json(out / "loom.json", result)
         write_text(out / "frames.csv", frames_csv(records))
         label = f"{source}, {speed_rpm:.0f} r/min"
-        for name, fig in (("lift_plan", lift_plan_figure(rows, f"{label}: lift plan and dwell "
-                                                               "vibration")),
+        for name, fig in (("lift_plan", lift_plan_figure(rows, f"{label}\nlift plan (squares: "
+                                                               "up), dwell vibration")),
                           ("deviation", deviation_figure(rows, f"{label}: deviation"))):
             fig.savefig(out / f"{name}.png", dpi=120)
             plt.close(fig)

@@ -28,7 +28,7 @@ def lift_plan_figure(rows: list[dict], title: str = ""):
     ax.set_xticks(range(1, frames + 1))
     ax.set_yticks(range(1, picks + 1))
     fig.colorbar(image, ax=ax, label="dwell vibration, peak to peak [mm]")
-    ax.set_title(title or "lift plan (white squares: up) and dwell vibration")
+    ax.set_title(title or "lift plan (white squares: up) and dwell vibration", fontsize=9)
     return fig
 
 
