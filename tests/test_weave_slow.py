@@ -6,8 +6,10 @@
   vector field, autodiff kinematics — not the collocation code that produced the run)
   linearised about the static equilibrium in that dwell. The run's decay rate σ (regression of
   the log of successive peak-to-peak half-swings) and damped frequency (spacing of the
-  extremes) must match to 2 % and 0.5 % (sampling: ~190 samples per period, the extremes
-  located to a sample; the regression over ~12 half-swings).
+  extremes) must match to 0.5 % and 0.1 % (sampling: ~105 samples per period, an extreme
+  located to a sample, but the regression runs over ~60 half-swings; measured < 3e-4 and 1e-4).
+  The coupled first mode's damping ratio is not the arm's 2 %: the chain adds inertia and no
+  damping, so it is σ/|λ| ≈ 0.23 % on the default machine (asserted in (0, 2 %]).
 * **Gradients through a plan** against central finite differences (h = 1e-4 relative,
   periodicity tolerance 1e-11: truncation ~1e-8, shooting noise ~1e-11/1e-4 = 1e-7 → 1e-5
   relative).
@@ -74,8 +76,8 @@ def test_long_dwell_rings_down_at_the_first_modes_rate():
     print(f"dwell decay: sigma {sigma:.3f} 1/s (frozen linearisation {sigma_ref:.3f}), "
           f"f {f_damped:.2f} Hz ({f_ref:.2f}), effective damping ratio {zeta:.4f}; "
           f"{int(keep.sum())} half-swings")
-    assert sigma == pytest.approx(sigma_ref, rel=0.02)
-    assert f_damped == pytest.approx(f_ref, rel=0.005)
+    assert sigma == pytest.approx(sigma_ref, rel=0.005)
+    assert f_damped == pytest.approx(f_ref, rel=0.001)
     # the arm's modal damping is 2 %: the coupled first mode's ratio is 2 % of the arm's
     # share of its energy, below 2 % (the chain adds inertia, no damping)
     assert 0.0 < zeta <= 0.02
