@@ -131,6 +131,11 @@ def _simulate(ns: argparse.Namespace) -> int:
 
     setup, options = setup_from_args(ns)
     pictures = simulate_pictures(ns)  # checks the picture flags before the run
+    if ns.lift_plan is not None:
+        from .weave.plan import parse_plan
+
+        parse_plan(ns.lift_plan, field="--lift-plan")
+        options.lift_plan = ns.lift_plan.strip()
     _status("solving the periodic steady state (a first run of a configuration compiles it)...")
     cache = _cache_dir()
     result, series = stored_report(setup, options,
@@ -140,7 +145,13 @@ def _simulate(ns: argparse.Namespace) -> int:
         print(f"jaxdobby simulate: {reason}", file=sys.stderr)
         return EXIT_SOLVER_FAILURE
     if ns.out:
-        paths = write_run(ns.out, result, series, figures=not ns.no_figures)
+        pick = None
+        if "lift_plan" in result:
+            from .weave.metrics import pick_of
+
+            pick = pick_of(series.t, series.t[-1], result["picks"],
+                           float(setup.machine.chain.dwell))
+        paths = write_run(ns.out, result, series, figures=not ns.no_figures, pick=pick)
         _status(f"wrote {len(paths)} files to {ns.out}")
 
     def run():  # the animation needs the whole run (modes, shapes): solved again, in Python
@@ -152,7 +163,9 @@ def _simulate(ns: argparse.Namespace) -> int:
     if ns.json:
         print(dumps(result))
     else:
-        print("jaxdobby simulate: periodic steady state of one heald-frame cycle\n")
+        print("jaxdobby simulate: periodic steady state of one heald-frame cycle"
+              + (f" (lift plan {result['lift_plan']}, repeat of {result['picks']} picks)"
+                 if "lift_plan" in result else "") + "\n")
         print(summary_table(result))
         if result["warnings"]:
             print("\n" + warning_lines(result["warnings"]))
@@ -203,6 +216,12 @@ def _sweep(ns: argparse.Namespace) -> int:
     return 0 if all(r["converged"] for r in result.rows) else 1
 
 
+def _loom(ns: argparse.Namespace) -> int:
+    from .weave.command import run
+
+    return run(ns, setup_from_args)
+
+
 def _status(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
@@ -248,6 +267,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     sim = sub.add_parser("simulate", help="one steady-state run (the default machine by default)")
     _add_model_arguments(sim)
+    sim.add_argument("--lift-plan", metavar="0/1...",
+                     help="the frame's lift sequence over the repeat, one 0/1 per pick (1 = up "
+                          "in that pick's shed), e.g. 1100 (default 10: plain weave)")
     sim.add_argument("--out", metavar="DIR", help="write summary.json, timeseries.csv, figures")
     sim.add_argument("--json", action="store_true", help="print the summary as JSON")
     sim.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
@@ -276,6 +298,21 @@ def build_parser() -> argparse.ArgumentParser:
                           "harmonics and the deviation against loom speed")
     _pictures_command().add_campbell_arguments(camp)
     camp.set_defaults(run=_pictures_command().run_campbell)
+    loom = sub.add_parser("loom", help="a weave on the whole frame set (vmapped): dwell "
+                                       "vibration per frame and pick",
+                          description="Every frame of a weave (a WIF file or --weave) over the "
+                                      "repeat, in one vmapped batch; strokes by the clean-shed "
+                                      "rule H_i = H_1 L_i/L_1 or --strokes.")
+    from .weave.command import add_arguments as _loom_arguments
+
+    _loom_arguments(loom)
+    for flag, kw in (("--speed", dict(type=float, metavar="RPM", help="loom speed [r/min]")),
+                     ("--warp-force", dict(type=float, metavar="N", help="peak warp force [N]")),
+                     ("--thickness", dict(type=float, metavar="MM", help="arm thickness [mm]")),
+                     ("--modes", dict(type=int, metavar="K", help="modes of the arm, 1-30")),
+                     ("--config", dict(metavar="FILE.toml", help="configuration file"))):
+        loom.add_argument(flag, **kw)
+    loom.set_defaults(run=_loom, stroke=None, coupling=None, warp_law=None, method=None)
     beam = sub.add_parser("beam", help="natural frequencies of the default bending arm")
     beam.add_argument("--modes", type=int, default=8, help="number of modes to list (1-30)")
     beam.set_defaults(run=_beam)

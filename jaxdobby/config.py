@@ -6,6 +6,7 @@ optional, unknown tables and keys are errors. Example (all values are the defaul
     [operating]
     speed_rpm = 800.0          # loom speed [r/min]
     warp_force_n = 690.0       # peak warp force [N]
+    lift_plan = "10"           # the frame's lift sequence, one 0/1 per pick (DESIGN §7)
 
     [stroke]
     stroke_mm = 140.0          # or link11_position_mm = 201.0 (one of the two)
@@ -46,6 +47,8 @@ from .simulate import METHODS
 MAX_MODES = 30
 
 OPTIONS: dict[str, dict[str, str]] = {
+    "operating": {"lift_plan": "the frame's lift sequence over the repeat, one 0/1 per pick "
+                               "(1 = up in that pick's shed), at least 2 picks, e.g. \"1100\""},
     "model": {"n_modes": f"modes of the arm kept, integer 1…{MAX_MODES}",
               "coupling": f"one of {', '.join(COUPLINGS)}",
               "warp_law": f"one of {', '.join(WARP_LAWS)}"},
@@ -63,6 +66,7 @@ class RunOptions:
 
     method: str | None = None  # None: collocation for two-way coupling, RK4 for one-way
     steps: int | None = None
+    lift_plan: str | None = None  # None: plain weave ("10")
 
 
 def keys_by_section() -> dict[str, dict[str, str]]:
@@ -97,6 +101,14 @@ def check_value(p: Parameter, value, where: str) -> list[float]:
 
 def _check_option(section: str, key: str, value, options: RunOptions, setup: Setup) -> Setup:
     where = f"[{section}] {key}"
+    if key == "lift_plan":
+        from .weave.plan import parse_plan
+
+        if not isinstance(value, str):
+            raise InputError(f'{where} must be a text of 0/1 characters, e.g. "1100"')
+        parse_plan(value, field=where)
+        options.lift_plan = value.strip()
+        return setup
     if key in ("n_modes", "steps"):
         low = 1 if key == "n_modes" else 72
         high = MAX_MODES if key == "n_modes" else 10_000_000
@@ -187,6 +199,8 @@ def to_toml(setup: Setup, options: RunOptions | None = None) -> str:
     sections["model"] += [f"n_modes = {m.n_modes}", f'coupling = "{m.coupling}"',
                           f'warp_law = "{m.warp_law}"']
     if options is not None:
+        if options.lift_plan is not None:
+            sections["operating"].append(f'lift_plan = "{options.lift_plan}"')
         solver = ([f'method = "{options.method}"'] if options.method is not None else []) + (
             [f"steps = {options.steps}"] if options.steps is not None else [])
         if solver:
@@ -205,6 +219,7 @@ def keys_markdown() -> str:
                        "warp_law": defaults.machine.warp_law,
                        "motion_law": defaults.machine.linkage.motion_law,
                        "method": "collocation (rk4 for one-way)",
+                       "lift_plan": '"10" (plain weave)',
                        "steps": "432 (collocation), from the highest mode (rk4)"}
     for section, keys in keys_by_section().items():
         for key, text in keys.items():

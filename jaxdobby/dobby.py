@@ -64,7 +64,10 @@ class DobbyModel(eqx.Module):
         link_joint: body-frame position of the link-11 joint on the undeformed arm [m].
         stroke: rigid heald-frame stroke H [m].
         mid_level: heald-frame height at mid-stroke (zero of the warp force) [m].
-        crank_start: eccentric angle at the bottom dead centre, where t = 0 dwells [rad].
+        crank_start: eccentric angle at the bottom dead centre [rad].
+        lift_plan: the frame's lift sequence b₀…b_{P−1}, shape (P,) of 0/1 floats, or None for
+            plain weave (a move every pick; :mod:`jaxdobby.modulator`). t = 0 is the middle
+            of the dwell of pick P − 1 (plain weave: the bottom dwell).
     """
 
     machine: Machine
@@ -76,21 +79,29 @@ class DobbyModel(eqx.Module):
     stroke: Array
     mid_level: Array
     crank_start: Array
+    lift_plan: Array | None = None
+
+    @property
+    def picks(self) -> int:
+        """Picks in the periodic cycle (static): 2 for plain weave, else the plan's length."""
+        return 2 if self.lift_plan is None else self.lift_plan.shape[-1]
 
     @property
     def period(self) -> Array:
-        """One heald-frame cycle (two picks) [s]."""
-        return modulator.cycle_period(self.operating.speed)
+        """The periodic cycle [s]: one heald-frame cycle (two picks) in plain weave, the repeat
+        of the lift plan otherwise."""
+        return modulator.plan_period(self.operating.speed, self.picks)
 
     @property
     def n_modes(self) -> int:
         return self.body.n_modes
 
 
-def crank_angle(chain: DobbyLinkage, crank_start, t, speed) -> Array:
-    """Eccentric angle φ(t) [rad] of the modulator (t = 0: middle of the bottom dwell)."""
+def crank_angle(chain: DobbyLinkage, crank_start, t, speed, plan=None) -> Array:
+    """Eccentric angle φ(t) [rad] of the modulator (t = 0: middle of the bottom dwell, or of
+    the last pick's dwell of a lift ``plan``; :func:`jaxdobby.modulator.crank_angle`)."""
     return modulator.crank_angle(t, speed, dwell=chain.dwell, start_angle=crank_start,
-                                 law=chain.motion_law)
+                                 law=chain.motion_law, plan=plan)
 
 
 def _reference_direction(chain: DobbyLinkage) -> Array:
@@ -111,8 +122,8 @@ def arm_modes(machine: Machine) -> ModalBasis:
     return modal_basis(arm_beam(machine.arm), supports, machine.n_modes)
 
 
-def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str | None = None
-                ) -> DobbyModel:
+def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str | None = None,
+                lift_plan=None) -> DobbyModel:
     """Assemble the arm, its modes at mid-lift and the chain's reference values (jittable).
 
     The modes use the ring-link direction at the middle of the lifting index (crank a quarter
@@ -122,7 +133,14 @@ def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str 
     no eigen-decomposition on the differentiated path; identical to the modal model when the
     basis is the machine's own modes. ``basis="own"``: the own modes, differentiated as the
     subspace they span (:func:`jaxdobby.modal.mode_subspace`; the design optimiser's choice).
+    ``lift_plan``: the frame's lift sequence, (P,) 0/1 floats (or None: plain weave); with the
+    ``restoring`` warp law only (the ``opposing`` law is defined by the plain weave's picks).
     """
+    if lift_plan is not None:
+        lift_plan = jnp.asarray(lift_plan, dtype=float)
+        if machine.warp_law != "restoring":
+            raise ValueError("a lift plan needs warp_law = 'restoring' (the 'opposing' law is "
+                             f"defined for plain weave only), got {machine.warp_law!r}")
     chain = machine.chain
     (phi_bottom, _), (theta_bottom, theta_top) = dead_centres(chain)
     n_ref = _reference_direction(chain)
@@ -136,7 +154,7 @@ def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str 
     return DobbyModel(machine=machine, operating=operating, chain=chain, body=body,
                       ring_direction_ref=n_ref, link_joint=chain.arm.point(s_link),
                       stroke=y_top - y_bottom, mid_level=0.5 * (y_top + y_bottom),
-                      crank_start=phi_bottom)
+                      crank_start=phi_bottom, lift_plan=lift_plan)
 
 
 # -- the rigid mechanism at time t -------------------------------------------------------------
@@ -158,7 +176,7 @@ class RigidState(eqx.Module):
 
 def arm_angle(model: DobbyModel, t) -> Array:
     """Rigid arm angle θ(t) [rad]."""
-    phi = crank_angle(model.chain, model.crank_start, t, model.operating.speed)
+    phi = crank_angle(model.chain, model.crank_start, t, model.operating.speed, model.lift_plan)
     return arm_angle_from_crank(model.chain, phi)
 
 
@@ -177,7 +195,7 @@ def rigid_state(model: DobbyModel, t) -> RigidState:
     t = jnp.asarray(t, dtype=float)
     theta, omega, alpha = time_derivatives(lambda tt: arm_angle(model, tt), t)
     frame = FrameState(theta, omega, alpha, jnp.zeros(2))
-    phi = crank_angle(model.chain, model.crank_start, t, model.operating.speed)
+    phi = crank_angle(model.chain, model.crank_start, t, model.operating.speed, model.lift_plan)
     a_t = rotation_matrix(theta).T
     p0 = rotation_matrix(theta) @ model.link_joint
     c, _, c_tt = time_derivatives(lambda tt: chain_from_joint(model, rigid_joint_position(model, tt)), t)

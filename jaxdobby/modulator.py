@@ -16,6 +16,21 @@ dwell contains t = 0),
 with s(τ) = 0 for τ ≤ 0 (the dwell) and s continuous into the next pick (s(1) = 1 = the next
 pick's n + 0). ⌊·⌋ is piecewise constant and s is clipped, so dφ/dt and d²φ/dt² are exactly
 zero during dwells and forward-mode autodiff in t is exact everywhere else.
+
+**Lift plans** (DESIGN.md §7). A frame's lift sequence b₀…b_{P−1} (1 = up in that pick's open
+shed) turns the eccentric by π in pick k iff m_k = |b_k − b_{k−1}| = 1 (cyclically), dwelling
+through the pick otherwise; the repeat lasts P picks. Pick k is the index ending at the dwell
+centred on ψ = 2π(k + 1), then that dwell: t = 0 is the middle of the dwell of pick P − 1 (the
+frame at b_{P−1}), as today's t = 0 is the middle of the bottom dwell, so the plan "10" is
+today's law. With C(u) the moves completed by u (piecewise linear between the integers,
+C(n) = Σ_{j<n} m_j, periodic extension with M = Σ m_j per repeat, found by ``jnp.interp``
+without the floor of f) and n = ⌊u⌋,
+
+    φ(t) = φ₀ + π·b_{P−1} + π·(C(u) − m_n·[f − s(τ)]),
+
+the same bracket as above, zero at both ends of a pick, so φ stays continuous even if C(u)
+and f disagree about which pick a boundary sample is in; for "10" (m ≡ 1, C(u) = u) it is
+the formula above.
 """
 
 from __future__ import annotations
@@ -40,6 +55,17 @@ def cycle_period(speed) -> Array:
     return 2.0 * pick_period(speed)
 
 
+def pick_moves(plan) -> Array:
+    """m_k = |b_k − b_{k−1}| (cyclic), 1 where the frame moves in pick k, shape (P,)."""
+    plan = jnp.asarray(plan, dtype=float)
+    return jnp.abs(plan - jnp.roll(plan, 1))
+
+
+def plan_period(speed, picks: int) -> Array:
+    """Duration [s] of a repeat of ``picks`` picks at loom speed ``speed`` [rad/s]."""
+    return picks * pick_period(speed)
+
+
 def crank_angle(
     t,
     speed,
@@ -48,6 +74,7 @@ def crank_angle(
     start_angle=0.0,
     law: str = DEFAULT_MOTION_LAW,
     index_angle=math.pi,
+    plan=None,
 ) -> Array:
     """Eccentric (crank) angle φ(t) [rad] of the modulator, elementwise in t.
 
@@ -58,6 +85,8 @@ def crank_angle(
         start_angle: φ₀, the crank angle during the dwell around t = 0 [rad].
         law: name of the index motion law (static).
         index_angle: eccentric turn per pick [rad] (π for the rotary dobby).
+        plan: the frame's lift sequence, shape (P,) of 0/1 floats (P static), or None: plain
+            weave, a move every pick (see the module docstring).
 
     Returns:
         φ(t) [rad], shape ``broadcast(t, speed).shape``; it increases without wrapping.
@@ -72,4 +101,13 @@ def crank_angle(
     u = psi / _TWO_PI
     f = u - jnp.floor(u)
     tau = (_TWO_PI * f - dwell) / (_TWO_PI - dwell)
-    return start_angle + index_angle * (u - (f - shape_law(tau)))
+    if plan is None:
+        return start_angle + index_angle * (u - (f - shape_law(tau)))
+    plan = jnp.asarray(plan, dtype=float)
+    picks = plan.shape[0]
+    moves = pick_moves(plan)
+    knots = jnp.concatenate([jnp.zeros(1), jnp.cumsum(moves)])  # C(0) … C(P)
+    repeats = jnp.floor(u / picks)
+    done = knots[-1] * repeats + jnp.interp(u - picks * repeats, jnp.arange(picks + 1.0), knots)
+    move = moves[jnp.mod(jnp.floor(u), picks).astype(int)]
+    return start_angle + index_angle * (plan[-1] + done - move * (f - shape_law(tau)))

@@ -8,6 +8,8 @@ at q = 0. Signs: heights and forces positive up; a *deviation* is flexible minus
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -126,6 +128,9 @@ def coupled_frequencies(model: DobbyModel, t=None) -> Array:
     partial velocities), stiffness K with the ring link along its actual direction and, for the
     restoring warp law, the warp force's stiffness F_w/(H/2) on the heald frame.
     """
+    if model.lift_plan is not None and t is None:
+        # a configuration's property: the same at mid-stroke whatever the lift plan
+        model = dataclasses.replace(model, lift_plan=None)
     t = mid_lift_time(model) if t is None else jnp.asarray(t, dtype=float)
     rigid = rigid_state(model, t)
     k = model.n_modes

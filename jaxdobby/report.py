@@ -48,6 +48,15 @@ def summary_table(summary: dict) -> str:
         else:
             text = fmt.format(v)
         lines.append(f"  {label:<44} {text:>14} {unit}")
+    if "lift_plan" in summary:
+        lines.append(f"  {'dwell vibration, max over the repeat':<44} "
+                     f"{summary['dwell_vibration_max_mm']:>14.3f} mm")
+        lines.append("  pick  lift  moves  shed-open deviation [mm]  dwell vibration pp [mm]")
+        for k, (b, mv, dev, vib) in enumerate(zip(summary["lift_plan"], summary["moves"],
+                                                 summary["shed_deviation_mm"],
+                                                 summary["dwell_vibration_pp_mm"])):
+            lines.append(f"  {k + 1:>4}  {b:>4}  {'yes' if mv else 'no':>5}  {dev:>24.3f}  "
+                         f"{vib:>23.3f}")
     return "\n".join(lines)
 
 
@@ -70,9 +79,12 @@ TIMESERIES_COLUMNS = [
 ]
 
 
-def timeseries_csv(series) -> str:
-    """The time series as CSV text, one row per output time (columns named with their units)."""
+def timeseries_csv(series, pick=None) -> str:
+    """The time series as CSV text, one row per output time (columns named with their units);
+    ``pick``: the pick (1…P) of each row of a lift plan's repeat, a ``pick`` column."""
     cols = [(name, np.asarray(fn(series)) * scale) for name, fn, scale in TIMESERIES_COLUMNS]
+    if pick is not None:
+        cols.insert(1, ("pick", np.asarray(pick) + 1))
     modal = np.asarray(series.modal)
     cols += [(f"q{i + 1}", modal[:, i]) for i in range(modal.shape[1])]
     buf = io.StringIO()
@@ -81,14 +93,16 @@ def timeseries_csv(series) -> str:
     return buf.getvalue()
 
 
-def write_run(directory: str | Path, summary: dict, series, figures: bool = True) -> list[Path]:
-    """Write ``summary.json``, ``timeseries.csv`` and the figures into ``directory``."""
+def write_run(directory: str | Path, summary: dict, series, figures: bool = True,
+              pick=None) -> list[Path]:
+    """Write ``summary.json``, ``timeseries.csv`` (``pick``: its pick column, see
+    :func:`timeseries_csv`) and the figures into ``directory``."""
     from .plots import save_figures
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     paths = [write_json(directory / "summary.json", summary),
-             write_text(directory / "timeseries.csv", timeseries_csv(series))]
+             write_text(directory / "timeseries.csv", timeseries_csv(series, pick))]
     if figures:
         label = f"{summary['speed_rpm']:.0f} r/min, {summary['warp_force_n']:.0f} N"
         paths += save_figures(series, directory, label=label)

@@ -52,6 +52,7 @@ from .metrics import cycle_metrics
 from .outputs import Timeseries, coupled_frequencies, flexible_outputs, rigid_outputs
 from .steady_state import ShootingResult, periodic_state, relative_residual
 from .validity import validity_arrays, warnings_of
+from .weave.metrics import pick_metrics
 
 METHODS = ("collocation", "rk4", "adaptive")
 
@@ -68,6 +69,8 @@ class Simulation(eqx.Module):
         periodicity: relative mismatch of the saved cycle's end and start states [-].
         converged: shooting converged and the saved cycle is periodic to ``tolerance``.
         num_steps: integration steps of the saved cycle.
+        pick_metrics: with a lift plan, the per-pick metrics of the repeat
+            (:func:`jaxdobby.weave.metrics.pick_metrics`) and ``lift_plan``; else empty.
     """
 
     model: DobbyModel
@@ -78,6 +81,7 @@ class Simulation(eqx.Module):
     periodicity: Array
     converged: Array
     num_steps: Array
+    pick_metrics: dict = eqx.field(default_factory=dict)
 
 
 def default_method(machine: Machine) -> str:
@@ -87,11 +91,12 @@ def default_method(machine: Machine) -> str:
 
 
 def resolve_method(machine: Machine, operating: OperatingPoint, method: str | None = None,
-                   steps: int | None = None, basis: Array | str | None = None
-                   ) -> tuple[str, int | None]:
+                   steps: int | None = None, basis: Array | str | None = None,
+                   lift_plan=None) -> tuple[str, int | None]:
     """(method, steps) as :func:`simulate` runs them: the default method for the coupling, the
-    default step count of the fixed-step methods; raises ``ValueError`` for a method that does
-    not exist or does not solve this model (:class:`~jaxdobby.errors.InputError`)."""
+    default step count of the fixed-step methods (collocation: 216 per pick, 432 for the plain
+    weave's two); raises ``ValueError`` for a method that does not exist or does not solve
+    this model (:class:`~jaxdobby.errors.InputError`)."""
     method = default_method(machine) if method is None else method
     if method not in METHODS:
         raise InputError(f"method = {method!r} is not valid: use one of {', '.join(METHODS)}")
@@ -99,23 +104,25 @@ def resolve_method(machine: Machine, operating: OperatingPoint, method: str | No
         if machine.coupling != "two-way":
             raise InputError("method = 'collocation' solves the two-way coupled model: use rk4 "
                              f"or adaptive for coupling = {machine.coupling!r}")
-        return method, COLLOCATION_STEPS if steps is None else steps
+        picks = 2 if lift_plan is None else len(lift_plan)
+        return method, COLLOCATION_STEPS * picks // 2 if steps is None else steps
     if method == "rk4" and steps is None:
-        steps = default_steps(machine, operating, basis)
+        steps = default_steps(machine, operating, basis, lift_plan)
     return method, steps
 
 
 def default_steps(machine: Machine, operating: OperatingPoint,
-                  basis: Array | str | None = None) -> int:
-    """RK4 steps per cycle for concrete parameters (Δt = 1.5/ω_max of the arm's modes)."""
-    model = eqx.filter_jit(build_model)(machine, operating, basis)
+                  basis: Array | str | None = None, lift_plan=None) -> int:
+    """RK4 steps per cycle (the repeat of a lift plan) for concrete parameters
+    (Δt = 1.5/ω_max of the arm's modes)."""
+    model = eqx.filter_jit(build_model)(machine, operating, basis, lift_plan)
     return steps_per_cycle(float(jnp.max(model.body.frequencies_hz)), float(model.period))
 
 
 def simulate(machine: Machine | None = None, operating: OperatingPoint | None = None, *,
              method: str | None = None, steps: int | None = None, n_out: int = 3001, rtol=1e-8,
              atol=1e-12, tolerance=1e-6, forward_mode: bool = False,
-             basis: Array | str | None = None) -> Simulation:
+             basis: Array | str | None = None, lift_plan=None) -> Simulation:
     """Steady-state heald-frame cycle of ``machine`` at ``operating`` (defaults: DESIGN §6).
 
     Args:
@@ -135,13 +142,43 @@ def simulate(machine: Machine | None = None, operating: OperatingPoint | None = 
         basis: optional fixed reduction basis of the arm, shape (n_dofs, n_modes), or
             ``"own"`` (the own modes with the derivative of their subspace; see
             :func:`jaxdobby.dobby.build_model`); default: the arm's own modes.
+        lift_plan: the frame's lift sequence over the repeat (DESIGN §7): text "1100", a 0/1
+            sequence or a float array (P,) (traced: vmappable over frames of equal P); None:
+            plain weave (the closed form; "10" gives the same to round-off). The steady
+            state, series and metrics then cover the repeat of P picks, and
+            ``pick_metrics`` holds the per-pick ones. A plan that never moves is static:
+            :class:`~jaxdobby.errors.InputError` (no dynamics to solve).
     """
     require_x64()
     machine = Machine.default() if machine is None else machine
     operating = OperatingPoint() if operating is None else operating
-    method, steps = resolve_method(machine, operating, method, steps, basis)
-    return _simulate(machine, operating, basis, method=method, steps=steps, n_out=n_out,
-                     rtol=rtol, atol=atol, tolerance=tolerance, forward_mode=forward_mode)
+    lift_plan = check_lift_plan(lift_plan, machine)
+    method, steps = resolve_method(machine, operating, method, steps, basis, lift_plan)
+    return _simulate(machine, operating, basis, lift_plan, method=method, steps=steps,
+                     n_out=n_out, rtol=rtol, atol=atol, tolerance=tolerance,
+                     forward_mode=forward_mode)
+
+
+def check_lift_plan(lift_plan, machine: Machine):
+    """The plan as :func:`simulate` takes it: None, or a float array (P,) (text and sequences
+    parsed by :func:`jaxdobby.weave.plan.parse_plan`); a concrete plan that never moves and a
+    plan with the ``opposing`` warp law raise :class:`~jaxdobby.errors.InputError`."""
+    if lift_plan is None:
+        return None
+    from .weave.plan import is_static, parse_plan, plan_text
+
+    if isinstance(lift_plan, jax.core.Tracer):
+        plan = lift_plan
+    else:
+        plan = jnp.asarray(parse_plan(lift_plan if isinstance(lift_plan, str)
+                                      else np.asarray(lift_plan)))
+        if is_static(plan):
+            raise InputError(f"lift_plan = {plan_text(plan)!r} never moves: the frame is static "
+                             "(no dynamics); give a plan with both 0 and 1")
+    if machine.warp_law != "restoring":
+        raise InputError("lift_plan needs warp_law = 'restoring' (the 'opposing' law is defined "
+                         "for plain weave only)")
+    return plan
 
 
 def _adaptive(model, x0, saveat, rtol, atol, adjoint):
@@ -158,9 +195,9 @@ def _save(model, rigid, x):
     return flexible_outputs(model, rigid, x[:k], x[k:]), x
 
 
-def _simulate_impl(machine, operating, basis, *, method, steps, n_out, rtol, atol, tolerance,
-                   forward_mode):
-    model = build_model(machine, operating, basis)
+def _simulate_impl(machine, operating, basis, lift_plan=None, *, method, steps, n_out, rtol,
+                   atol, tolerance, forward_mode):
+    model = build_model(machine, operating, basis, lift_plan)
     k = model.n_modes
     x_rest = jnp.zeros(2 * k)
     if method == "rk4":
@@ -205,8 +242,12 @@ def _simulate_impl(machine, operating, basis, *, method, steps, n_out, rtol, ato
     if method != "collocation":
         flexible = dict(flexible, **rigid_outputs(model, ts))
     series = Timeseries(t=ts, **flexible)
+    picks = {}
+    if lift_plan is not None:
+        picks = dict(pick_metrics(series, model.lift_plan, model.chain.dwell),
+                     lift_plan=model.lift_plan)
     return Simulation(
-        model=model, series=series, metrics=cycle_metrics(series),
+        model=model, series=series, metrics=cycle_metrics(series), pick_metrics=picks,
         natural_frequencies=coupled_frequencies(model), shooting=shooting,
         periodicity=periodicity,
         converged=shooting.converged & (periodicity <= tolerance) & solved,
@@ -232,6 +273,7 @@ def report_arrays(run: Simulation) -> dict[str, Array]:
                arm_frequencies=model.body.frequencies_hz, converged=run.converged,
                periodicity=run.periodicity, iterations=run.shooting.iterations)
     out.update(validity_arrays(run))
+    out.update({f"pick.{k}": v for k, v in run.pick_metrics.items()})
     return out
 
 
@@ -266,6 +308,27 @@ def summary_of(arrays: dict, machine: Machine) -> dict[str, float | list | bool]
         "periodicity_residual": float(arrays["periodicity"]),
         "newton_iterations": int(arrays["iterations"]),
         "warnings": warnings_of(arrays, _SIMULATE_DEFAULTS["tolerance"]),
+        **_pick_summary(arrays),
+    }
+
+
+def _pick_summary(arrays: dict) -> dict:
+    """The lift plan's keys of the summary (none in plain weave): the plan, its picks, and per
+    pick whether the frame moves, the deviation at shed-open and the dwell vibration [mm]."""
+    if "pick.lift_plan" not in arrays:
+        return {}
+    from .weave.plan import plan_text
+
+    mm = 1e3
+    plan = np.asarray(arrays["pick.lift_plan"])
+    return {
+        "lift_plan": plan_text(plan),
+        "picks": int(plan.shape[0]),
+        "moves": [bool(v > 0.5) for v in np.asarray(arrays["pick.moves"])],
+        "shed_deviation_mm": [float(v) * mm for v in np.asarray(arrays["pick.shed_deviation"])],
+        "dwell_vibration_pp_mm": [float(v) * mm
+                                  for v in np.asarray(arrays["pick.dwell_vibration"])],
+        "dwell_vibration_max_mm": float(arrays["pick.dwell_vibration_max"]) * mm,
     }
 
 
@@ -300,13 +363,15 @@ def report_program(setup, options) -> tuple:
     program (the arguments of :func:`jaxdobby.programs.call_stored`)."""
     require_x64()
     machine, operating = setup.machine, setup.operating
-    method, steps = resolve_method(machine, operating, options.method, options.steps)
-    dynamic, static = eqx.partition((machine, operating), eqx.is_array)
+    plan = check_lift_plan(getattr(options, "lift_plan", None), machine)
+    method, steps = resolve_method(machine, operating, options.method, options.steps,
+                                   lift_plan=plan)
+    dynamic, static = eqx.partition((machine, operating, plan), eqx.is_array)
     leaves, tree = jax.tree.flatten(dynamic)
 
     def report(*values):
-        m, o = eqx.combine(jax.tree.unflatten(tree, values), static)
-        return report_arrays(_simulate_impl(m, o, None, method=method, steps=steps,
+        m, o, p = eqx.combine(jax.tree.unflatten(tree, values), static)
+        return report_arrays(_simulate_impl(m, o, None, p, method=method, steps=steps,
                                             **_SIMULATE_DEFAULTS))
 
     return "simulate", report, leaves, repr((static, tree, method, steps, _SIMULATE_DEFAULTS))

@@ -13,7 +13,7 @@ sys.path.insert(0, str(NOTEBOOKS))
 from make_notebooks import build  # noqa: E402
 
 FAST = ["01_bending_arm", "02_one_cycle"]
-SLOW = ["03_modal_truncation", "04_parameters", "05_sobol", "06_design"]
+SLOW = ["03_modal_truncation", "04_parameters", "05_sobol", "06_design", "07_weave"]
 
 
 def run(name):

@@ -36,7 +36,8 @@ from .chain import Downstream, Frame, chain_terms
 from .collocation import NODES
 
 REFERENCE_SPEED = 4.0 * jnp.pi
-"""Loom speed [rad/s] whose cycle lasts 1 s: rigid tables are evaluated with it at t = τ."""
+"""Loom speed [rad/s] whose cycle lasts 1 s: rigid tables are evaluated with it at t = τ (a
+lift plan of P picks: 2πP, its repeat lasting 1 s)."""
 
 
 class ArmTerms(eqx.Module):
@@ -103,16 +104,17 @@ class RigidArm(eqx.Module):
 
 def rigid_arm(model: DobbyModel, phase) -> RigidArm:
     """:class:`RigidArm` at phases τ (speed-free; see the module docstring)."""
-    chain = model.chain
+    chain, plan = model.chain, model.lift_plan
+    speed = REFERENCE_SPEED if plan is None else 2.0 * jnp.pi * model.picks
 
     def one(tau):
         def theta(t):
             return arm_angle_from_crank(chain, crank_angle(chain, model.crank_start, t,
-                                                           REFERENCE_SPEED))
+                                                           speed, plan))
 
         th, th1, th2 = time_derivatives(theta, tau)
         n = ring_link_direction_from_crank(chain, crank_angle(chain, model.crank_start, tau,
-                                                              REFERENCE_SPEED))
+                                                              speed, plan))
         c, s = jnp.cos(th), jnp.sin(th)
         return RigidArm(tau, c, s, th1, th2, jnp.stack([c * n[0] + s * n[1], -s * n[0] + c * n[1]]))
 

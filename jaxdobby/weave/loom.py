@@ -1,0 +1,92 @@
+"""The whole frame set of a weave in one vmapped batch (``jaxdobby loom``).
+
+Every frame has its own identical lifting unit (DESIGN.md §7); frames differ in their lift
+sequence (a column of the weave's lift plan, all of the repeat's length P) and their stroke,
+set by the link-11 joint's position on the arm (the differentiable root solve of
+:func:`jaxdobby.stroke.arc_length_for_stroke`, done per frame before the batch, where an
+unreachable stroke is an :class:`~jaxdobby.errors.InputError`). For a clean shed the stroke
+grows with the frame's distance from the cloth fell, H_i = H₁·L_i/L₁ with
+L_i = L₁ + (i − 1)·pitch (similar triangles).
+
+:func:`run_frames` runs ``jax.vmap`` of :func:`jaxdobby.simulate.simulate` over (plan, joint
+position): one compiled program for the set, whatever the number of frames; a frame whose plan
+never moves is static — answered without dynamics (zero deviation and dwell vibration, rigid
+acceleration 0; its constant static deflection is not computed: deviation min/max None) and
+left out of the batch.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import InputError
+from ..machine import Machine, OperatingPoint
+from ..simulate import simulate
+from ..stroke import arc_length_for_stroke
+from .plan import moves, plan_text
+
+CHUNK = 16
+"""Frames per vmapped call (the progress unit of a large set)."""
+
+
+def clean_shed_strokes(frames: int, front_stroke, frame_pitch, fell_distance) -> np.ndarray:
+    """Strokes H_i = H₁·(L₁ + (i − 1)·pitch)/L₁ of frames 1…n [same unit as H₁]."""
+    if fell_distance <= 0 or frame_pitch < 0 or front_stroke <= 0:
+        raise InputError("--front-stroke and --fell-distance must be > 0 and --frame-pitch >= 0")
+    return front_stroke * (fell_distance + frame_pitch * np.arange(frames)) / fell_distance
+
+
+def joint_positions(machine: Machine, strokes_m) -> np.ndarray:
+    """Link-11 arc length [m] of each frame's stroke [m]; an unreachable one: InputError."""
+    out = []
+    for i, h in enumerate(np.asarray(strokes_m, dtype=float)):
+        try:
+            out.append(float(arc_length_for_stroke(machine.chain, h)))
+        except ValueError as err:
+            raise InputError(f"frame {i + 1}: stroke {h * 1e3:.1f} mm: {err}") from None
+    return np.array(out)
+
+
+@eqx.filter_jit
+def _batch(machine, operating, plans, positions):
+    def one(plan, s):
+        run = simulate(machine.with_link11_arc_length(s), operating, lift_plan=plan)
+        return dict(run.metrics, **run.pick_metrics, converged=run.converged,
+                    deviation=run.series.deviation, t=run.series.t)
+
+    return jax.vmap(one)(plans, positions)
+
+
+def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, strokes_m,
+               progress=None) -> list[dict]:
+    """Per frame (SI): the metrics of :func:`simulate` over the repeat, the per-pick ones, the
+    deviation series; ``plan`` (picks, frames) of 0/1, ``strokes_m`` (frames,) [m].
+
+    ``progress(done, total)`` is called after each chunk of :data:`CHUNK` frames."""
+    plan = np.asarray(plan, dtype=float)
+    picks, frames = plan.shape
+    positions = joint_positions(machine, strokes_m)
+    moving = [i for i in range(frames) if np.any(moves(plan[:, i]))]
+    rows: list[dict] = [dict() for _ in range(frames)]
+    for start in range(0, len(moving), CHUNK):
+        idx = moving[start:start + CHUNK]
+        # pad the chunk to a fixed size (one compiled program) by repeating its last frame
+        pad = idx + [idx[-1]] * (min(CHUNK, len(moving)) - len(idx))
+        out = _batch(machine, operating, jnp.asarray(plan[:, pad].T), jnp.asarray(positions[pad]))
+        out = jax.tree.map(np.asarray, out)
+        for j, i in enumerate(idx):
+            rows[i] = {k: v[j] for k, v in out.items()}
+        if progress is not None:
+            progress(min(start + CHUNK, len(moving)), len(moving))
+    for i in range(frames):
+        rows[i].update(frame=i + 1, stroke=float(np.asarray(strokes_m)[i]),
+                       lift_plan=plan_text(plan[:, i]), static=i not in moving)
+        if i not in moving:
+            rows[i].update(deviation_pp=0.0, deviation_max=None, deviation_min=None,
+                           acceleration_amp=0.0, dwell_vibration=np.zeros(picks),
+                           dwell_vibration_max=0.0, shed_deviation=np.zeros(picks),
+                           moves=np.zeros(picks), converged=True, deviation=None)
+    return rows
