@@ -50,6 +50,11 @@ class ArmDesign(eqx.Module):
         tip_length: straight tip beyond the arc [m].
         ring_joint_arc_length: arc length of the ring-link joint from the pivot [m].
         youngs_modulus: E [Pa]. density: ρ [kg/m³].
+        ultimate_strength, yield_strength: σ_u and σ_y of the material [Pa] (42CrMo4 +QT,
+            16–40 mm: 1000 and 750 MPa, EN 10083-3 Table 5).
+        endurance_limit: σ_e′ of a polished rotating-beam specimen [Pa] (0.5·σ_u, Shigley
+            eq. 6-8); surface_factor, size_factor: Marin factors k_a, k_b [-] (default 1);
+            the fatigue check uses k_a·k_b·σ_e′ (:mod:`jaxdobby.stress.fatigue`).
         n_arc_elements: elements along the arc (static; 5 in the source study's mesh).
     """
 
@@ -63,6 +68,11 @@ class ArmDesign(eqx.Module):
     ring_joint_arc_length: Array = eqx.field(converter=as_float, default=0.080)
     youngs_modulus: Array = eqx.field(converter=as_float, default=2.07e11)
     density: Array = eqx.field(converter=as_float, default=7800.0)
+    ultimate_strength: Array = eqx.field(converter=as_float, default=1.0e9)
+    yield_strength: Array = eqx.field(converter=as_float, default=7.5e8)
+    endurance_limit: Array = eqx.field(converter=as_float, default=5.0e8)
+    surface_factor: Array = eqx.field(converter=as_float, default=1.0)
+    size_factor: Array = eqx.field(converter=as_float, default=1.0)
     n_arc_elements: int = eqx.field(static=True, default=5)
 
     @property

@@ -98,9 +98,15 @@ def _simulate(ns: argparse.Namespace) -> int:
     setup, options = setup_from_args(ns)
     _status("solving the periodic steady state (the first run compiles: up to a minute)...")
     run = simulate(setup.machine, setup.operating, method=options.method, steps=options.steps)
-    result = summary(run)
+    from .stress.cycle import run_stress
+    from .stress.summary import warning_texts
+
+    stress = run_stress(run)
+    result = summary(run, stress)
+    for text in warning_texts(result):
+        _status(f"jaxdobby simulate: warning: {text}")
     if ns.out:
-        paths = write_run(ns.out, result, run.series, figures=not ns.no_figures)
+        paths = write_run(ns.out, result, run.series, figures=not ns.no_figures, stress=stress)
         _status(f"wrote {len(paths)} files to {ns.out}")
     if ns.json:
         print(dumps(result))

@@ -43,6 +43,7 @@ class Timeseries(eqx.Module):
         ring_link_force: axial force of the ring link 9, tension positive [N].
         link11_force: force of link 11 on the arm, inertial x and y [N], shape (n, 2).
         modal: modal coordinates q, shape (n, k).
+        modal_rate: their rates q̇, shape (n, k) (for the stress's static correction).
     """
 
     t: Array
@@ -56,6 +57,7 @@ class Timeseries(eqx.Module):
     ring_link_force: Array
     link11_force: Array
     modal: Array
+    modal_rate: Array
 
     @property
     def deviation(self) -> Array:
@@ -89,7 +91,7 @@ def flexible_outputs(model: DobbyModel, rigid: RigidState, q, qdot) -> dict[str,
     ring = model.machine.ring_link_stiffness * rigid.ring_direction @ (model.body.points[RING] @ q)
     return dict(heald_flexible=c[1], velocity_flexible=c_dot[1], acceleration_flexible=c_ddot[1],
                 link_point_deviation=a @ (model.body.points[LINK] @ q), ring_link_force=ring,
-                link11_force=link_force, modal=q)
+                link11_force=link_force, modal=q, modal_rate=qdot)
 
 
 def rigid_outputs(model: DobbyModel, t) -> dict[str, Array]:

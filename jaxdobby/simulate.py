@@ -214,8 +214,12 @@ def _simulate(machine, operating, basis, *, method, steps, n_out, rtol, atol, to
     )
 
 
-def summary(run: Simulation) -> dict[str, float | list | bool]:
-    """The run's summary in the users' units (the keys of ``jaxdobby simulate --json``)."""
+def summary(run: Simulation, stress=None) -> dict[str, float | list | bool]:
+    """The run's summary in the users' units (the keys of ``jaxdobby simulate --json``); the
+    arm's stress keys from :func:`jaxdobby.stress.summary.stress_summary` (``stress``: its
+    :func:`~jaxdobby.stress.cycle.run_stress`, computed here when not given)."""
+    from .stress.summary import stress_summary
+
     m = {k: float(v) for k, v in run.metrics.items()}
     model = run.model
     mm = 1e3
@@ -243,4 +247,5 @@ def summary(run: Simulation) -> dict[str, float | list | bool]:
         "converged": bool(run.converged),
         "periodicity_residual": float(run.periodicity),
         "newton_iterations": int(run.shooting.iterations),
+        **stress_summary(run, stress),
     }
