@@ -105,7 +105,8 @@ def arm_stress(model: DobbyModel, basis=None, points_per_element: int = POINTS_P
     other than the model's only for truncation studies)."""
     machine = model.machine
     beam = arm_beam(machine.arm)
-    supports = arm_supports(model.ring_direction_ref, machine.ring_link_stiffness)
+    supports = arm_supports(model.ring_direction_ref, machine.ring_link_stiffness,
+                            machine.arm.ring_joint_node)
     phi = reduction_basis(beam, supports, model.n_modes if n_modes is None else n_modes, basis)
     k = supported_stiffness(beam, supports)
     residual = residual_flexibility(k, supports.free_dofs(beam.n_nodes), phi)

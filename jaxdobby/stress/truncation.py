@@ -57,7 +57,8 @@ def dobby_truncation_study(model: DobbyModel, modes=(1, 2, 3, 4, 5, 6, 7, 8),
     """:func:`truncation_study` of ``model``'s supported arm under its rigid mechanism's loads."""
     machine = model.machine
     return truncation_study(arm_beam(machine.arm),
-                            arm_supports(model.ring_direction_ref, machine.ring_link_stiffness),
+                            arm_supports(model.ring_direction_ref, machine.ring_link_stiffness,
+                                         machine.arm.ring_joint_node),
                             cycle_loads(model, n_samples), float(model.period),
                             float(machine.damping_ratio), modes, points_per_element)
 
