@@ -31,9 +31,10 @@ def synthetic_loads():
 
 
 def test_mode_acceleration_converges_much_faster_than_mode_displacement():
-    """Measured (this load, 855 MPa peak): MD error 12 % (k = 1), 5.2, 5.0, 3.4 % (k = 2, 4, 8)
-    of the peak stress; MA 3.5e-5, 4.6e-6, 9.8e-7, 3.7e-7. Asserted with margin: MA error < 2e-3 at every k and below 1/10 of MD's; and MA with
-    one mode is better than MD with eight."""
+    """Measured (this load, 855 MPa peak): MD error 12 % (k = 1), 5.2, 5.0, 3.4 % (k = 2, 4, 8) of
+    the peak stress; MA 3.5e-5, 4.6e-6, 9.8e-7, 3.7e-7. Asserted with margin: MA error < 2e-3 at
+    every k and below 1/10 of MD's; and MA with one mode is better than MD with eight.
+    """
     beam, loads = synthetic_loads()
     supports = arm_supports(np.array([0.95, 0.3]), 1.38e8)
     r = truncation_study(beam, supports, loads, PERIOD, 0.02, modes=(1, 2, 4, 8))

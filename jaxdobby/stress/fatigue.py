@@ -20,12 +20,12 @@ bound, so a factor below 1 here is certainly a failure and one above 1 is not a 
 
 The part's factor is the smallest over all points and both edges. The design optimiser needs
 smooth functions: :func:`smooth_peak_stress` and :func:`smooth_fatigue_utilisation` replace the
-extremes over the cycle and over the points by log-sum-exp soft maxima,
-smax(x) = c·log Σ exp(β x/c)/β with the scale c = RMS of x and β = 200: smax ≥ max and
-exceeds it by at most c·log(n)/β (≤ 3.7 % of c for the 1728 samples of a cycle, 2.6 % over
-200 points), less where the peak is smooth (+1.1 % for the peak
-stress and +1.3 % for 1/n measured on the default arm at 800 r/min), and its gradient is a weighted mean of the gradients of the samples within
-a few tenths of a percent of the peak.
+extremes over the cycle and over the points by log-sum-exp soft maxima, smax(x) = c·log Σ exp(β
+x/c)/β with the scale c = RMS of x and β = 200: smax ≥ max and exceeds it by at most c·log(n)/β
+(≤ 3.7 % of c for the 1728 samples of a cycle, 2.6 % over 200 points), less where the peak is
+smooth (+1.1 % for the peak stress and +1.3 % for 1/n measured on the default arm at 800 r/min),
+and its gradient is a weighted mean of the gradients of the samples within a few tenths of a
+percent of the peak.
 """
 
 from __future__ import annotations

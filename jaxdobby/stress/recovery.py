@@ -69,7 +69,8 @@ class StressOperator(eqx.Module):
         return self.arc_lengths.shape
 
     def stresses(self, displacements: Array) -> Array:
-        """Edge stresses [Pa], shape (..., n_elements, n_points, 2), for displacements (..., n_dofs)."""
+        """Edge stresses [Pa], shape (..., n_elements, n_points, 2), for displacements
+        (..., n_dofs) [m, rad]."""
         sigma = displacements @ self.matrix.T
         return sigma.reshape(sigma.shape[:-1] + self.shape + (2,))
 
