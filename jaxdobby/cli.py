@@ -87,6 +87,8 @@ def _add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--thickness", type=float, metavar="MM",
                    help="plate thickness of the bending arm [mm] (default 6)")
     p.add_argument("--modes", type=int, metavar="K", help="modes of the arm kept, 1-30 (default 4)")
+    p.add_argument("--elements", type=int, metavar="N",
+                   help="elements of the arm's mesh, 4-200 (default 10, the study's 11 nodes)")
     p.add_argument("--coupling", choices=["two-way", "one-way"], help="default two-way")
     p.add_argument("--warp-law", choices=["restoring", "opposing"], help="default restoring")
     p.add_argument("--method", choices=["collocation", "rk4", "adaptive"],
@@ -118,6 +120,10 @@ def setup_from_args(ns: argparse.Namespace):
             changes[key] = getattr(ns, key)
     if changes:
         setup = dataclasses.replace(setup, machine=setup.machine.replace(**changes))
+    if getattr(ns, "elements", None) is not None:  # the optimiser's namespace has no --elements
+        from .config import with_elements
+
+        setup = with_elements(setup, ns.elements, "--elements")
     if ns.method is not None:
         options.method = ns.method
     return setup, options
@@ -138,8 +144,8 @@ def _simulate(ns: argparse.Namespace) -> int:
         options.lift_plan = ns.lift_plan.strip()
     _status("solving the periodic steady state (a first run of a configuration compiles it)...")
     cache = _cache_dir()
-    result, series = stored_report(setup, options,
-                                   directory=None if cache is None else cache / "programs")
+    result, series, stress = stored_report(
+        setup, options, directory=None if cache is None else cache / "programs")
     reason = failure(result)
     if reason is not None:
         print(f"jaxdobby simulate: {reason}", file=sys.stderr)
@@ -151,7 +157,8 @@ def _simulate(ns: argparse.Namespace) -> int:
 
             pick = pick_of(series.t, series.t[-1], result["picks"],
                            float(setup.machine.chain.dwell))
-        paths = write_run(ns.out, result, series, figures=not ns.no_figures, pick=pick)
+        paths = write_run(ns.out, result, series, figures=not ns.no_figures, pick=pick,
+                          stress=stress)
         _status(f"wrote {len(paths)} files to {ns.out}")
 
     def run():  # the animation needs the whole run (modes, shapes): solved again, in Python

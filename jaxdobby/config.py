@@ -18,6 +18,7 @@ optional, unknown tables and keys are errors. Example (all values are the defaul
 
     [model]
     n_modes = 4
+    n_elements = 10            # elements of the arm's mesh (4…200)
     damping_ratio = 0.02
     coupling = "two-way"       # or "one-way"
     warp_law = "restoring"     # or "opposing"
@@ -45,11 +46,14 @@ from .parameters import PARAMETERS, Parameter, Setup, apply
 from .simulate import METHODS
 
 MAX_MODES = 30
+MIN_ELEMENTS, MAX_ELEMENTS = 4, 200
 
 OPTIONS: dict[str, dict[str, str]] = {
     "operating": {"lift_plan": "the frame's lift sequence over the repeat, one 0/1 per pick "
                                "(1 = up in that pick's shed), at least 2 picks, e.g. \"1100\""},
     "model": {"n_modes": f"modes of the arm kept, integer 1…{MAX_MODES}",
+              "n_elements": f"elements of the arm's mesh, integer {MIN_ELEMENTS}…{MAX_ELEMENTS} "
+                            "(key points stay nodes; 10 = the source study's 11 nodes)",
               "coupling": f"one of {', '.join(COUPLINGS)}",
               "warp_law": f"one of {', '.join(WARP_LAWS)}"},
     "linkage": {"motion_law": f"modulator law, one of {', '.join(sorted(MOTION_LAWS))}"},
@@ -109,6 +113,8 @@ def _check_option(section: str, key: str, value, options: RunOptions, setup: Set
         parse_plan(value, field=where)
         options.lift_plan = value.strip()
         return setup
+    if key == "n_elements":
+        return with_elements(setup, value, where)
     if key in ("n_modes", "steps"):
         low = 1 if key == "n_modes" else 72
         high = MAX_MODES if key == "n_modes" else 10_000_000
@@ -130,6 +136,17 @@ def _check_option(section: str, key: str, value, options: RunOptions, setup: Set
         linkage = setup.machine.linkage.replace(motion_law=value)
         return dataclasses.replace(setup, machine=setup.machine.replace(linkage=linkage))
     return dataclasses.replace(setup, machine=setup.machine.replace(**{key: value}))
+
+
+def with_elements(setup: Setup, value, where: str) -> Setup:
+    """``setup`` with the arm meshed into ``value`` elements (validated; ``where`` names the
+    field in the error)."""
+    if (isinstance(value, bool) or not isinstance(value, int)
+            or not MIN_ELEMENTS <= value <= MAX_ELEMENTS):
+        raise InputError(f"{where} = {value!r} is outside the valid range "
+                         f"(an integer {MIN_ELEMENTS}…{MAX_ELEMENTS})")
+    arm = dataclasses.replace(setup.machine.arm, n_elements=value)
+    return dataclasses.replace(setup, machine=setup.machine.replace(arm=arm))
 
 
 def from_mapping(data: Mapping, setup: Setup | None = None,
@@ -196,7 +213,8 @@ def to_toml(setup: Setup, options: RunOptions | None = None) -> str:
         sections.setdefault(p.section, []).append(f"{p.key} = {text}")
     m = setup.machine
     sections["linkage"].append(f'motion_law = "{m.linkage.motion_law}"')
-    sections["model"] += [f"n_modes = {m.n_modes}", f'coupling = "{m.coupling}"',
+    sections["model"] += [f"n_modes = {m.n_modes}", f"n_elements = {m.arm.n_elements}",
+                          f'coupling = "{m.coupling}"',
                           f'warp_law = "{m.warp_law}"']
     if options is not None:
         if options.lift_plan is not None:
@@ -215,7 +233,9 @@ def keys_markdown() -> str:
     defaults = _Setup()
     lines = ["| table | key | meaning, unit, valid range | default |", "|---|---|---|---|"]
     by_key = {(p.section, p.key): p for p in PARAMETERS.values()}
-    option_defaults = {"n_modes": defaults.machine.n_modes, "coupling": defaults.machine.coupling,
+    option_defaults = {"n_modes": defaults.machine.n_modes,
+                       "n_elements": defaults.machine.arm.n_elements,
+                       "coupling": defaults.machine.coupling,
                        "warp_law": defaults.machine.warp_law,
                        "motion_law": defaults.machine.linkage.motion_law,
                        "method": "collocation (rk4 for one-way)",

@@ -118,7 +118,8 @@ def arm_modes(machine: Machine) -> ModalBasis:
     Their shapes, held fixed, are the reduction basis of a design study (``basis=`` of
     :func:`build_model`).
     """
-    supports = arm_supports(_reference_direction(machine.chain), machine.ring_link_stiffness)
+    supports = arm_supports(_reference_direction(machine.chain), machine.ring_link_stiffness,
+                            machine.arm.ring_joint_node)
     return modal_basis(arm_beam(machine.arm), supports, machine.n_modes)
 
 
@@ -144,7 +145,7 @@ def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str 
     chain = machine.chain
     (phi_bottom, _), (theta_bottom, theta_top) = dead_centres(chain)
     n_ref = _reference_direction(chain)
-    supports = arm_supports(n_ref, machine.ring_link_stiffness)
+    supports = arm_supports(n_ref, machine.ring_link_stiffness, machine.arm.ring_joint_node)
     s_link = chain.link11_arc_length
     body = flexible_body(arm_beam(machine.arm), supports, machine.n_modes,
                          points=jnp.stack([machine.arm.ring_joint_arc_length, s_link]),

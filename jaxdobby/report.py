@@ -28,6 +28,12 @@ SUMMARY_ROWS = [
     ("acceleration_rigid_amp_m_s2", "acceleration, rigid (p-p)", "m/s²", "{:.0f}"),
     ("ring_link_force_max_n", "ring-link force, max", "N", "{:.0f}"),
     ("link11_force_max_n", "link-11 force, max", "N", "{:.0f}"),
+    ("stress_max_mpa", "arm stress, largest |σ| over the cycle", "MPa", "{:.0f}"),
+    ("stress_max_position_mm", "  at arc length (edge below)", "mm", "{:.1f}"),
+    ("stress_max_edge", "  edge (looking from the pivot)", "", "{}"),
+    ("stress_range_mpa", "  stress range there (max − min)", "MPa", "{:.0f}"),
+    ("stress_mean_mpa", "  mean stress there", "MPa", "{:+.0f}"),
+    ("fatigue_safety_factor", "fatigue safety factor (Goodman, min)", "", "{:.2f}"),
     ("natural_frequencies_hz", "coupled natural frequencies", "Hz", None),
     ("converged", "periodic steady state", "", None),
 ]
@@ -79,12 +85,16 @@ TIMESERIES_COLUMNS = [
 ]
 
 
-def timeseries_csv(series, pick=None) -> str:
+def timeseries_csv(series, pick=None, stress=None) -> str:
     """The time series as CSV text, one row per output time (columns named with their units);
-    ``pick``: the pick (1…P) of each row of a lift plan's repeat, a ``pick`` column."""
+    ``pick``: the pick (1…P) of each row of a lift plan's repeat, a ``pick`` column; with
+    ``stress`` (:class:`~jaxdobby.stress.cycle.CycleStress`) also the stress at the arm's
+    critical point, ``stress_critical_mpa``."""
     cols = [(name, np.asarray(fn(series)) * scale) for name, fn, scale in TIMESERIES_COLUMNS]
     if pick is not None:
         cols.insert(1, ("pick", np.asarray(pick) + 1))
+    if stress is not None:
+        cols.append(("stress_critical_mpa", np.asarray(stress.critical) * 1e-6))
     modal = np.asarray(series.modal)
     cols += [(f"q{i + 1}", modal[:, i]) for i in range(modal.shape[1])]
     buf = io.StringIO()
@@ -94,18 +104,28 @@ def timeseries_csv(series, pick=None) -> str:
 
 
 def write_run(directory: str | Path, summary: dict, series, figures: bool = True,
-              pick=None) -> list[Path]:
+              pick=None, stress=None) -> list[Path]:
     """Write ``summary.json``, ``timeseries.csv`` (``pick``: its pick column, see
-    :func:`timeseries_csv`) and the figures into ``directory``."""
+    :func:`timeseries_csv`) and the figures into ``directory`` (with ``stress``, a
+    :class:`~jaxdobby.stress.cycle.CycleStress`, also its CSV column and the stress-envelope
+    figure ``arm_stress.png``)."""
     from .plots import save_figures
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     paths = [write_json(directory / "summary.json", summary),
-             write_text(directory / "timeseries.csv", timeseries_csv(series, pick))]
+             write_text(directory / "timeseries.csv", timeseries_csv(series, pick, stress))]
     if figures:
         label = f"{summary['speed_rpm']:.0f} r/min, {summary['warp_force_n']:.0f} N"
         paths += save_figures(series, directory, label=label)
+        if stress is not None:
+            from .plots import plt
+            from .stress.plots import envelope_figure
+
+            fig = envelope_figure(stress, summary, label=label)
+            fig.savefig(directory / "arm_stress.png", dpi=120)
+            plt.close(fig)
+            paths.append(directory / "arm_stress.png")
     return paths
 
 

@@ -261,9 +261,14 @@ _SIMULATE_DEFAULTS = dict(n_out=3001, rtol=1e-8, atol=1e-12, tolerance=1e-6, for
 """:func:`simulate`'s defaults of the options the command line does not set."""
 
 
-def report_arrays(run: Simulation) -> dict[str, Array]:
-    """Every array the run's report needs (:func:`summary_of`, the time series), by name: a
-    flat dict of arrays, what :func:`stored_report`'s stored program returns."""
+def report_arrays(run: Simulation, stress=None) -> dict[str, Array]:
+    """Every array the run's report needs (:func:`summary_of`, the time series, the arm's
+    stress), by name: a flat dict of arrays, what :func:`stored_report`'s stored program
+    returns. ``stress``: the run's :func:`~jaxdobby.stress.cycle.run_stress` if computed
+    already."""
+    from .stress.cycle import run_stress, stress_arrays
+
+    stress = run_stress(run) if stress is None else stress
     model = run.model
     out = {f"metric.{k}": v for k, v in run.metrics.items()}
     out.update({f"series.{k}": getattr(run.series, k) for k in Timeseries.__dataclass_fields__})
@@ -274,16 +279,18 @@ def report_arrays(run: Simulation) -> dict[str, Array]:
                periodicity=run.periodicity, iterations=run.shooting.iterations)
     out.update(validity_arrays(run))
     out.update({f"pick.{k}": v for k, v in run.pick_metrics.items()})
+    out.update(stress_arrays(stress))
     return out
 
 
 def summary_of(arrays: dict, machine: Machine) -> dict[str, float | list | bool]:
     """The summary in the users' units (the keys of ``jaxdobby simulate --json``) from
     :func:`report_arrays` of a run of ``machine``."""
+    from .stress.summary import stress_summary_of, warning_entries
     m = {k.removeprefix("metric."): float(v) for k, v in arrays.items()
          if k.startswith("metric.")}
     mm = 1e3
-    return {
+    out = {
         "speed_rpm": float(arrays["speed"]) * 60.0 / (2.0 * np.pi),
         "warp_force_n": float(arrays["warp_force"]),
         "thickness_mm": float(arrays["thickness"]) * mm,
@@ -309,7 +316,10 @@ def summary_of(arrays: dict, machine: Machine) -> dict[str, float | list | bool]
         "newton_iterations": int(arrays["iterations"]),
         "warnings": warnings_of(arrays, _SIMULATE_DEFAULTS["tolerance"]),
         **_pick_summary(arrays),
+        **stress_summary_of(arrays, machine.arm),
     }
+    out["warnings"] = out["warnings"] + warning_entries(out)
+    return out
 
 
 def _pick_summary(arrays: dict) -> dict:
@@ -332,13 +342,16 @@ def _pick_summary(arrays: dict) -> dict:
     }
 
 
-def summary(run: Simulation) -> dict[str, float | list | bool]:
-    """The run's summary in the users' units (the keys of ``jaxdobby simulate --json``)."""
-    return summary_of(report_arrays(run), run.model.machine)
+def summary(run: Simulation, stress=None) -> dict[str, float | list | bool]:
+    """The run's summary in the users' units (the keys of ``jaxdobby simulate --json``), the
+    arm's stress included (``stress``: the run's :func:`~jaxdobby.stress.cycle.run_stress` if
+    computed already)."""
+    return summary_of(report_arrays(run, stress), run.model.machine)
 
 
-def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries]:
-    """(summary, time series) of ``simulate(setup.machine, setup.operating, method=…, steps=…)``
+def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, object]:
+    """(summary, time series, arm stress :class:`~jaxdobby.stress.cycle.CycleStress`) of
+    ``simulate(setup.machine, setup.operating, method=…, steps=…)``
     as the command line reports them, through a stored program
     (:func:`jaxdobby.programs.call_stored`): a later run of the same configuration — the same
     sizes, laws and method; any float values — reads the traced program from ``directory``
@@ -353,9 +366,11 @@ def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries]:
 
     name, fn, args, static_key = report_program(setup, options)
     arrays = call_stored(name, fn, args, static_key=static_key, directory=directory)
+    from .stress.cycle import stress_of_arrays
+
     series = Timeseries(**{k.removeprefix("series."): v for k, v in arrays.items()
                            if k.startswith("series.")})
-    return summary_of(arrays, setup.machine), series
+    return summary_of(arrays, setup.machine), series, stress_of_arrays(arrays)
 
 
 def report_program(setup, options) -> tuple:

@@ -41,6 +41,8 @@ TABLE_COLUMNS = [
     ("velocity_deviation_amp_m_s", "vel. dev. p-p [m/s]", "{:.3f}"),
     ("acceleration_amp_m_s2", "acc. p-p [m/s²]", "{:.0f}"),
     ("acceleration_rigid_amp_m_s2", "rigid acc. p-p [m/s²]", "{:.0f}"),
+    ("stress_max_mpa", "arm stress max [MPa]", "{:.0f}"),
+    ("fatigue_safety_factor", "fatigue factor", "{:.2f}"),
     ("converged", "converged", "{}"),
 ]
 

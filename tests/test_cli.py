@@ -72,6 +72,13 @@ def test_default_run_writes_everything(default_outputs):
     assert dev.max() - dev.min() <= summary["deviation_pp_mm"] <= 1.001 * (dev.max() - dev.min())
     for name in ("deviation", "velocity", "acceleration", "link_point_deviation", "displacement"):
         assert (out / f"{name}.png").stat().st_size > 10_000
+    # the arm's stress: the CSV's critical-point column reaches the summary's peak |σ|
+    critical = np.array([float(r["stress_critical_mpa"]) for r in rows])
+    np.testing.assert_allclose(np.abs(critical).max(), summary["stress_max_mpa"], rtol=1e-12)
+    np.testing.assert_allclose(critical.max() - critical.min(), summary["stress_range_mpa"],
+                               rtol=1e-12)
+    assert summary["stress_max_edge"] in ("left", "right") and summary["fatigue_safety_factor"] > 0
+    assert (out / "arm_stress.png").stat().st_size > 10_000
 
 
 def test_json_to_stdout(capsys, default_outputs):

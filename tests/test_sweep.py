@@ -10,7 +10,8 @@ from jaxdobby.parameters import PARAMETERS, Setup, apply
 from jaxdobby.simulate import simulate, summary
 from jaxdobby.sweep import run_sweep
 
-KEYS = ("deviation_pp_mm", "deviation_min_mm", "deviation_max_mm", "acceleration_amp_m_s2")
+KEYS = ("deviation_pp_mm", "deviation_min_mm", "deviation_max_mm", "acceleration_amp_m_s2",
+        "stress_max_mpa", "fatigue_safety_factor")
 
 
 def test_vmapped_sweep_equals_single_runs():

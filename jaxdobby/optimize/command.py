@@ -17,6 +17,8 @@ Everything can be given by flags or in a problem file (``--problem FILE.toml``; 
     [constraints]
     mass_budget_kg = 0.45
     frequency_floor_hz = 100.0
+    stress_limit_mpa = 400.0       # peak stress over the cycle (smooth surrogate)
+    fatigue_floor = 1.5            # Goodman safety factor of the arm
     pitch_mm = 12.0               # thickness <= pitch - clearance
     clearance_mm = 4.0
 
@@ -56,7 +58,8 @@ PROBLEM_KEYS = {
     "objective": ("metric", "speeds_rpm", "aggregate", "acceleration_weight"),
     "variables": ("names", "thickness_mm", "depth_mm", "depth_positions_mm", "arc_radius_mm",
                   "heald_frame_mass_kg", "blade_inertia_kg_m2"),
-    "constraints": ("mass_budget_kg", "frequency_floor_hz", "pitch_mm", "clearance_mm"),
+    "constraints": ("mass_budget_kg", "frequency_floor_hz", "stress_limit_mpa", "fatigue_floor",
+                    "pitch_mm", "clearance_mm"),
     "optimizer": ("name", "steps", "learning_rate", "inner_steps", "penalty", "tolerance",
                   "gradient", "cycle_steps", "starts"),
 }
@@ -87,6 +90,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--mass-budget", type=float, metavar="KG", help="largest arm mass [kg]")
     g.add_argument("--frequency-floor", type=float, metavar="HZ",
                    help="smallest first coupled natural frequency [Hz]")
+    g.add_argument("--stress-limit", type=float, metavar="MPA",
+                   help="largest peak stress in the arm over the cycle [MPa] (smooth surrogate)")
+    g.add_argument("--fatigue-floor", type=float, metavar="N",
+                   help="smallest Goodman fatigue safety factor of the arm (smooth surrogate)")
     g.add_argument("--pitch", type=float, metavar="MM", help="pitch between arms [mm] (12)")
     g.add_argument("--clearance", type=float, metavar="MM", help="clearance [mm] (4)")
     o = p.add_argument_group("optimiser")
@@ -228,6 +235,12 @@ def build_study(ns: argparse.Namespace):
         check_range("mass budget", mass_budget, 0.0, unit="kg")
     if floor is not None:
         check_range("frequency floor", floor, 0.0, unit="Hz")
+    stress_limit = pick(getattr(ns, "stress_limit", None), con, "stress_limit_mpa", None)
+    fatigue_floor = pick(getattr(ns, "fatigue_floor", None), con, "fatigue_floor", None)
+    if stress_limit is not None:
+        check_range("stress limit", stress_limit, 0.0, unit="MPa")
+    if fatigue_floor is not None:
+        check_range("fatigue floor", fatigue_floor, 0.0)
     pitch = check_range("pitch", pick(ns.pitch, con, "pitch_mm", 12.0), 0.0, unit="mm")
     clearance = check_range("clearance", pick(ns.clearance, con, "clearance_mm", 4.0), 0.0,
                             pitch, unit="mm", low_open=False, high_open=True)
@@ -262,7 +275,12 @@ def build_study(ns: argparse.Namespace):
     objective = Objective(metric=metric, speeds=speeds_from_rpm(speeds), aggregate=aggregate,
                           acceleration_weight=weight)
     return Study(space=space, objective=objective,
-                 limits=Constraints(mass_budget=mass_budget, frequency_floor=floor),
+                 limits=Constraints(mass_budget=mass_budget, frequency_floor=floor,
+                                    stress_limit=None if stress_limit is None
+                                    else float(stress_limit) * 1e6,
+                                    fatigue_floor=None if fatigue_floor is None
+                                    else float(fatigue_floor),
+                                    speeds=speeds_from_rpm(speeds)),
                  settings=settings, gradient=gradient, steps=cycle_steps, starts=starts)
 
 

@@ -31,6 +31,7 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 
 import equinox as eqx
@@ -87,15 +88,23 @@ class Constraints:
     Attributes:
         mass_budget: largest arm mass [kg].
         frequency_floor: smallest first coupled natural frequency [Hz].
+        stress_limit: largest peak stress in the arm over the cycle [Pa] (smooth surrogate).
+        fatigue_floor: smallest Goodman fatigue safety factor of the arm [-] (surrogate).
+        speeds: loom speeds at which the stress constraints hold, the worst counts [rad/s].
     """
 
     mass_budget: float | None = None
     frequency_floor: float | None = None
+    stress_limit: float | None = None
+    fatigue_floor: float | None = None
+    speeds: tuple[float, ...] = (800.0 * math.pi / 30.0,)
 
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(n for n, v in (("mass", self.mass_budget),
-                                    ("frequency", self.frequency_floor)) if v is not None)
+                                    ("frequency", self.frequency_floor),
+                                    ("stress", self.stress_limit),
+                                    ("fatigue", self.fatigue_floor)) if v is not None)
 
 
 class DesignSpace(eqx.Module):
@@ -299,11 +308,17 @@ def constraints(space: DesignSpace, limits: Constraints, u: Array) -> Array:
         out.append(arm_mass(setup) / limits.mass_budget - 1.0)
     if limits.frequency_floor is not None:
         out.append(1.0 - first_frequency(setup, space.basis) / limits.frequency_floor)
+    if limits.stress_limit is not None or limits.fatigue_floor is not None:
+        from ..stress.design import stress_constraints
+
+        out += stress_constraints(setup, space.basis, limits.speeds, limits.stress_limit,
+                                  limits.fatigue_floor)
     return jnp.stack(out) if out else jnp.zeros(0)
 
 
 def constraint_jacobian(space: DesignSpace, limits: Constraints, u: Array):
-    """c(u) and its Jacobian (n_c, n) by forward mode (cheap: no time integration)."""
+    """c(u) and its Jacobian (n_c, n) by forward mode (cheap without the stress rows; those
+    integrate one steady cycle per speed, :mod:`jaxdobby.stress.design`)."""
     return _constraint_values_and_jacobian(space, limits, u)
 
 

@@ -139,4 +139,6 @@ def figures(history: list[dict], constraint_names: list[str], profiles: dict,
 
 
 def _constraint_label(name: str) -> str:
-    return {"mass": "arm mass / budget − 1", "frequency": "1 − f₁ / floor"}.get(name, name)
+    return {"mass": "arm mass / budget − 1", "frequency": "1 − f₁ / floor",
+            "stress": "peak stress / limit − 1", "fatigue": "floor / fatigue factor − 1"}.get(
+        name, name)

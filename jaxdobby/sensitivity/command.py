@@ -38,13 +38,15 @@ from .batch import Evaluation, Progress, check_chunk_size, evaluate, local_devic
 from .dobby import DOBBY
 from .failures import POLICIES, FailedSamplesError
 from .models import ISHIGAMI, ModelSpec
+from .stress import DOBBY_STRESS
 from .plots import save_figures
 from .progress import ProgressBar
 from .space import ParameterSpace, check_base_samples
 from .store import ChunkStore, atomic_write, samples_digest, write_json
 
-MODELS: dict[str, ModelSpec] = {"dobby": DOBBY, "ishigami": ISHIGAMI}
-"""Models ``--model`` can name (the dobby by default; Ishigami for checking the pipeline)."""
+MODELS: dict[str, ModelSpec] = {"dobby": DOBBY, "ishigami": ISHIGAMI, "dobby-stress": DOBBY_STRESS}
+"""Models ``--model`` can name (the dobby by default; Ishigami for checking the pipeline;
+``dobby-stress`` adds the arm's peak stress and fatigue factor, :mod:`.stress`)."""
 
 DEFAULT_CHUNK = 512
 """Default rows per chunk (rounded up to a multiple of the device count)."""
@@ -137,7 +139,9 @@ def add_arguments(parser: argparse.ArgumentParser,
     a("--process-id", type=int, default=_int_env("JAXDOBBY_PROCESS_ID"),
       help="this process's id, 0 … P-1 (or $JAXDOBBY_PROCESS_ID)")
     default_model = "dobby" if "dobby" in models else sorted(models)[0]
-    a("--model", choices=sorted(models), default=default_model, help=argparse.SUPPRESS)
+    a("--model", choices=sorted(models), default=default_model,
+      help="dobby (default), dobby-stress (adds the arm's peak stress and fatigue factor; "
+           "slower), ishigami (checks the pipeline)")
 
 
 def _int_env(name: str) -> int | None:
