@@ -33,21 +33,26 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
     XLA program either way, so equal to round-off (1e-12 relative). A stale key (other
     sources) must not find the stored file."""
     monkeypatch.setattr(programs, "SHIPPED", tmp_path / "shipped")  # none shipped
-    first, _ = stored_report(default_setup, RunOptions(), directory=tmp_path)
+    first, _, _ = stored_report(default_setup, RunOptions(), directory=tmp_path)
     stored = list(tmp_path.glob("*.jaxexport"))
     assert len(stored) == 1
     slower = Setup(operating=default_setup.operating.__class__.from_users_units(speed_rpm=600.0))
-    got, series = stored_report(slower, RunOptions(), directory=tmp_path)
+    got, series, stress = stored_report(slower, RunOptions(), directory=tmp_path)
     assert list(tmp_path.glob("*.jaxexport")) == stored  # read back, not exported anew
     run = simulate(slower.machine, slower.operating)
     want = summary(run)
     for key, value in want.items():
         if isinstance(value, float):
             assert got[key] == pytest.approx(value, rel=1e-12, abs=1e-300), key
+        elif key == "warnings":  # (code, message, value, limit): values to round-off
+            assert [w["code"] for w in got[key]] == [w["code"] for w in value]
+            for a, b in zip(got[key], value):
+                assert a["value"] == pytest.approx(b["value"], rel=1e-12), a["code"]
         else:
             assert got[key] == value, key
     np.testing.assert_allclose(series.deviation, run.series.deviation, rtol=0,
                                atol=1e-12 * float(np.ptp(run.series.deviation)))
+    assert float(stress.metrics["stress_max"]) * 1e-6 == pytest.approx(got["stress_max_mpa"])
     assert first["speed_rpm"] == pytest.approx(800.0) and got["speed_rpm"] == pytest.approx(600.0)
     name, _, args, static_key = report_program(slower, RunOptions())
     assert programs.program_key(name, static_key + " changed", args) != stored[0].name

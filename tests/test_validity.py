@@ -41,8 +41,11 @@ def default_run():
 
 def test_default_machine_is_inside_every_limit(default_run):
     model, arrays = default_run
-    # the default machine (DESIGN §6, 800 r/min) is the study's design point: no warning
-    assert summary_of(arrays, model.machine)["warnings"] == []
+    # the default machine (DESIGN §6, 800 r/min) is the study's design point: inside every
+    # limit of the model's validity; its arm is not a design to build, though (DESIGN §7): the
+    # one warning is the fatigue check (Goodman factor 0.84 against the polished-specimen limit)
+    codes = [w["code"] for w in summary_of(arrays, model.machine)["warnings"]]
+    assert codes == ["fatigue_limit_exceeded"]
     # deflection ratio: |Φ_P q| in the body frame (rotation-free) over |p|, from the modal
     # coordinates rather than the inertial link-point deviation the check uses
     q = arrays["series.modal"]
