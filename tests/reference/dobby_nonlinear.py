@@ -26,7 +26,9 @@ Switches (:class:`Options`) put back one of jaxdobby's assumptions at a time: ``
 (spring along the rigid-kinematics direction, k₉ n nᵀ u_J), ``elastic="linear"`` (K u plus the
 consistent geometric stiffness Σₑ Nₑ(t) K_σₑ u of the static axial forces of the rigid-motion
 loads and the rigid link-11 force — jaxdobby's linearised stiffening), ``"linear-inertia"`` (the
-same without gravity and warp force in the preload), ``"linear-none"`` (no stiffening),
+same without gravity and warp force in the preload), ``"linear-actual"`` (the same with the
+*actual* link-11 force of the coupled motion in the preload instead of the rigid one — the fix
+the budget points to), ``"linear-none"`` (no stiffening),
 ``rotary_inertia=False``, ``damping="stiffness"``.
 
 Time integration: the implicit midpoint rule (symmetric, A-stable, second order) on a uniform
@@ -58,7 +60,7 @@ class Options:
     """Model-form switches of the reference (defaults: the reference itself)."""
 
     ring: str = "follow"            # "follow" | "fixed"
-    elastic: str = "corotational"   # "corotational" | "linear" | "linear-inertia" | "linear-none"
+    elastic: str = "corotational"   # or "linear", "linear-inertia", "linear-actual", "linear-none"
     rotary_inertia: bool = True
     damping: str = "modal"          # "modal" | "stiffness" | "none"
     refine: int = 1
@@ -132,9 +134,9 @@ class Reference:
         n_t = row["t"].shape[0]
         if opt in ("corotational", "linear-none"):
             return np.zeros((n_t, arm.L.size))
-        g = float(self.machine.gravity) if opt == "linear" else 0.0
+        g = 0.0 if opt == "linear-inertia" else float(self.machine.gravity)
         theta, om, al = (np.asarray(row[k]) for k in ("theta", "omega", "alpha"))
-        lf = np.asarray(link_force)
+        lf = np.asarray(link_force) * (opt != "linear-actual")  # actual force: in residual
         if opt == "linear-inertia":  # the link force without frame weight and warp force
             mi = build_model(self.machine.replace(gravity=0.0),
                              self.model.operating.__class__(speed=self.model.operating.speed,
@@ -149,10 +151,22 @@ class Reference:
         u[:, f] = np.linalg.solve(self.k_supported[np.ix_(f, f)], loads[:, f].T).T
         return np.stack([arm.axial_forces(ui) for ui in u])
 
+    def link_force_map(self):
+        """Element axial forces [N] per unit body-frame force [N] at the link-11 joint, (n_el, 2):
+        the static solve of the supported arm (as the preload's)."""
+        f, out = self.free, []
+        for c in range(2):
+            load = np.zeros(self.arm.n_dofs)
+            load[3 * self.p + c] = 1.0
+            u = np.zeros(self.arm.n_dofs)
+            u[f] = np.linalg.solve(self.k_supported[np.ix_(f, f)], load[f])
+            out.append(self.arm.axial_forces(u))
+        return np.stack(out, 1)
+
     # -- equations of motion ------------------------------------------------------------------
     def residual(self, q, v, a, row):
         """R(q, q̇, q̈) = inertia + internal − applied generalised forces on the free DOFs [N]."""
-        arm, opt, m = self.arm, self.options, self.model
+        arm, opt = self.arm, self.options
         nd = arm.n_dofs
         u, ud, udd = (jnp.zeros(nd).at[self.free].set(x) for x in (q, v, a))
         om, al = row["omega"], row["alpha"]
@@ -162,10 +176,16 @@ class Reference:
              - om**2 * (mt @ (arm.position + u)) + jnp.asarray(self.damping) @ ud)
         gb = rot.T @ jnp.array([0.0, -float(self.machine.gravity)])
         r = r - mt @ (gb[0] * arm.x + gb[1] * arm.y)
+        chain_force = self._chain_force(u, ud, udd, row)  # on the arm, body frame [N]
+        pd = slice(3 * self.p, 3 * self.p + 2)
+        r = r.at[pd].add(-chain_force)
         if opt.elastic == "corotational":
             r = r + jax.grad(arm.strain_energy)(u)
         else:
-            r = r + arm.K @ u + jnp.einsum("e,eij,j->i", row["preload"], arm.K_sigma, u)
+            preload = row["preload"]
+            if opt.elastic == "linear-actual":
+                preload = preload + jnp.asarray(self.link_force_map()) @ chain_force
+            r = r + arm.K @ u + jnp.einsum("e,eij,j->i", preload, arm.K_sigma, u)
         jd = slice(3 * self.j, 3 * self.j + 2)
         if opt.ring == "follow":
             def ring_energy(uj):
@@ -175,8 +195,14 @@ class Reference:
         else:
             n = row["n"]
             r = r.at[jd].add(self.k9 * n * (n @ u[jd]))
+        return r[self.free]
+
+    def _chain_force(self, u, ud, udd, row):
+        """Force of link 11 on the arm [N], body frame: −Aᵀ C'(P)ᵀ (D c̈ − Q) (d'Alembert)."""
+        m, om, al = self.model, row["omega"], row["alpha"]
+        rot = _rot(row["theta"])
         pd = slice(3 * self.p, 3 * self.p + 2)
-        rp = arm.X[self.p] + u[pd]
+        rp = self.arm.X[self.p] + u[pd]
         pos = rot @ rp
         vel = rot @ (om * _S @ rp + ud[pd])
         acc = rot @ (udd[pd] + 2 * om * _S @ ud[pd] + al * _S @ rp - om**2 * rp)
@@ -185,8 +211,7 @@ class Reference:
         c_prime, c_second = jax.jvp(jax.jacfwd(closure), (pos,), (vel,))
         c_acc = c_prime @ acc + c_second @ vel
         load = chain_inertia(m) * c_acc - generalised_chain_forces(m, row["t"], c[1])
-        r = r.at[pd].add(rot.T @ (c_prime.T @ load))
-        return r[self.free]
+        return -rot.T @ (c_prime.T @ load)
 
     def heald_height(self, q, row):
         """Heald-frame height y_H [m] of the deformed machine."""
