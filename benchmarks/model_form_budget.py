@@ -50,7 +50,6 @@ VARIANTS = {
     "no rotary inertia": dict(rotary_inertia=False),
     "stiffness-proportional damping": dict(damping="stiffness"),
     "all of jaxdobby's (full FE)": dict(ring="fixed", elastic="linear", rotary_inertia=False),
-    "reference, arm mesh refined (20 elements)": dict(refine=2),
     "fix: stiffening from the actual link-11 force": dict(elastic="linear-actual"),
     "all of jaxdobby's with the fix (full FE)": dict(ring="fixed", elastic="linear-actual",
                                                      rotary_inertia=False),
@@ -93,6 +92,25 @@ def reference_row(machine, rpm, options, x0=None):
     return row, res["x0"]
 
 
+JAXDOBBY_ROWS = ("jaxdobby, 31 modes (all)", "jaxdobby, 8 modes", "jaxdobby, 4 modes (default)",
+                 "jaxdobby, 4 modes, stiffness-proportional damping")
+
+
+def _rank(name):
+    """Table order: reference variants (fix last), then jaxdobby's rows."""
+    names = [n for n in VARIANTS if not n.startswith(("fix", "all of jaxdobby's with"))]
+    names += [n for n in VARIANTS if n not in names] + list(JAXDOBBY_ROWS)
+    return names.index(name) if name in names else len(names)
+
+
+def _save_partial(rows):
+    """Rows so far, in case a long run is stopped (results/model_form_budget_partial.json)."""
+    write_json(RESULTS / "model_form_budget_partial.json",
+               dict(rows=[dict(variant=n, speed_rpm=rpm, **{k: v for k, v in r.items()
+                                                            if k != "_x0"})
+                          for (n, rpm), r in rows.items()]))
+
+
 def stiffness_damping_ratios(machine):
     """Per-mode ratios ζᵢ = ζ ωᵢ/ω₁ of stiffness-proportional damping, 2 % at the first mode."""
     from jaxdobby.dobby import arm_modes
@@ -105,20 +123,37 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--steps", type=int, default=STEPS)
     parser.add_argument("--only", nargs="+", metavar="VARIANT",
-                        help="run these reference variants only, merged into the existing JSON")
+                        help="run these reference variants only, into model_form_budget_only.json")
+    parser.add_argument("--jaxdobby-only", action="store_true",
+                        help="run jaxdobby's rows only, into model_form_budget_jaxdobby.json")
+    parser.add_argument("--merge", nargs="+", metavar="JSON",
+                        help="write the main results from the rows of these result files")
     parser.add_argument("--figure-only", action="store_true",
                         help="redraw docs/figures/model_form_budget.png from the JSON")
     args = parser.parse_args(argv)
     if args.figure_only:
-        figure(json.loads((RESULTS / "model_form_budget.json").read_text()))
+        out = json.loads((RESULTS / "model_form_budget.json").read_text())
+        figure(out)
+        print(compact_table(out))
+        return
+    if args.merge:
+        rows = {}
+        for name in args.merge:
+            for r in json.loads(Path(name).read_text())["rows"]:
+                rows[(r["variant"], r["speed_rpm"])] = r
+        out = dict(environment=environment(), steps_per_cycle=args.steps,
+                   speeds_rpm=list(SPEEDS), rows=sorted(
+                       rows.values(), key=lambda r: (_rank(r["variant"]), r["speed_rpm"])))
+        out.update(benchmark="model_form_budget", markdown=markdown(out))
+        write_json(RESULTS / "model_form_budget.json", out)
+        (RESULTS / "model_form_budget.md").write_text(markdown(out))
+        figure(out)
         return
     speeds = (800.0,) if args.quick else SPEEDS
-    names = QUICK_VARIANTS if args.quick else tuple(args.only or VARIANTS)
+    names = (QUICK_VARIANTS if args.quick else () if args.jaxdobby_only
+             else tuple(args.only or VARIANTS))
     machine = Machine.default()
     rows = {}
-    if args.only:
-        old = json.loads((RESULTS / "model_form_budget.json").read_text())
-        rows = {(r["variant"], r["speed_rpm"]): r for r in old["rows"]}
     for name in names:
         options = Options(steps=args.steps, **VARIANTS[name])
         for rpm in speeds:
@@ -129,6 +164,7 @@ def main(argv=None):
             rows[(name, rpm)] = row
             print(f"{name:42s} {rpm:6.0f}  pp {row['deviation_pp']:.4f} mm  "
                   f"f1 {row['f1_frozen']:.3f} Hz  ({row['wall_s']:.0f} s)", flush=True)
+            _save_partial(rows)
     jax_variants = {} if args.only else {"jaxdobby, 31 modes (all)": dict(n_modes=31),
                     "jaxdobby, 8 modes": dict(n_modes=8),
                     "jaxdobby, 4 modes (default)": {}}
@@ -146,11 +182,15 @@ def main(argv=None):
                    dict(variant=n, speed_rpm=rpm, **{k: v for k, v in r.items()
                                                      if k not in ("_x0", "variant", "speed_rpm")})
                    for (n, rpm), r in rows.items()])
-    stem = "model_form_budget_quick" if args.quick else "model_form_budget"
+    stem = ("model_form_budget_quick" if args.quick else
+            "model_form_budget_only" if args.only else
+            "model_form_budget_jaxdobby" if args.jaxdobby_only else "model_form_budget")
     write_json(RESULTS / f"{stem}.json", out)
+    if args.only or args.jaxdobby_only:
+        return
     (RESULTS / f"{stem}.md").write_text(markdown(out))
     print(markdown(out))
-    if not args.quick:
+    if not (args.quick or args.only):
         figure(json.loads(json.dumps(out, default=float)))
 
 
@@ -170,8 +210,10 @@ def figure(out, path=FIGURE):
     ref = series("reference")
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
     for name, style in (("reference", "k-o"), ("jaxdobby, 4 modes (default)", "C0--s"),
-                        ("jaxdobby, 31 modes (all)", "C1:^")):
-        a.plot(speeds, series(name), style, label=name)
+                        ("jaxdobby, 31 modes (all)", "C1:^"),
+                        ("all of jaxdobby's (full FE)", "C2-.v")):
+        if name in names:
+            a.plot(speeds, series(name), style, label=name)
     a.set_xlabel("loom speed [r/min]")
     a.set_ylabel("heald-frame deviation p-p [mm]")
     a.legend(fontsize=8)
@@ -188,12 +230,32 @@ def figure(out, path=FIGURE):
     fig.savefig(path, dpi=100)
 
 
+def compact_table(out) -> str:
+    """docs/model.md's table: deviation p-p [mm] of the reference and each variant's change [%],
+    and the first frozen coupled frequency [Hz] at 1200 r/min."""
+    rows, speeds = out["rows"], out["speeds_rpm"]
+    get = {(r["variant"], r["speed_rpm"]): r for r in rows}
+    lines = ["| variant | " + " | ".join(f"p-p {s:.0f}" for s in speeds) + " | f₁ at 1200 |",
+             "|---|" + "---:|" * (len(speeds) + 1)]
+    for name in dict.fromkeys(r["variant"] for r in rows):
+        cells = []
+        for s in speeds:
+            r, ref = get[(name, s)], get[("reference", s)]
+            cells.append(f"{r['deviation_pp']:.3f} mm" if name == "reference" else
+                         f"{100 * (r['deviation_pp'] / ref['deviation_pp'] - 1):+.2f} %")
+        f1 = get[(name, speeds[-1])].get("f1_frozen")
+        cells.append("–" if f1 is None else f"{f1:.2f} Hz")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def markdown(out) -> str:
     """The budget table: each variant's metrics and its change from the reference [%]."""
     rows = out["rows"]
     ref = {r["speed_rpm"]: r for r in rows if r["variant"] == "reference"}
-    lines = [f"Heald-frame deviation p-p [mm] and change from the reference [%], then "
-             f"first frozen coupled frequency at mid-lift [Hz]; reference: "
+    lines = [f"Heald-frame deviation p-p [mm] and change from the reference [%]; min…max [mm] "
+             f"(– where only p-p and f₁ were recorded); first frozen coupled frequency at "
+             f"mid-lift [Hz] and its change; reference: "
              f"{out['steps_per_cycle']} midpoint steps per cycle.", "",
              "| variant | " + " | ".join(f"{s:.0f} r/min" for s in out["speeds_rpm"]) + " |",
              "|---|" + "---|" * len(out["speeds_rpm"])]
@@ -202,10 +264,12 @@ def markdown(out) -> str:
         for s in out["speeds_rpm"]:
             r = next(x for x in rows if x["variant"] == name and x["speed_rpm"] == s)
             d = 100 * (r["deviation_pp"] / ref[s]["deviation_pp"] - 1)
-            df = 100 * (r["f1_frozen"] / ref[s]["f1_frozen"] - 1)
-            cells.append(f"{r['deviation_pp']:.3f} ({d:+.1f} %); "
-                         f"{r['deviation_min']:.3f}…{r['deviation_max']:.3f}; "
-                         f"{r['f1_frozen']:.2f} Hz ({df:+.2f} %)")
+            f1 = r.get("f1_frozen")
+            df = None if f1 is None else 100 * (f1 / ref[s]["f1_frozen"] - 1)
+            span = ("–" if r.get("deviation_min") is None else
+                    f"{r['deviation_min']:.3f}…{r['deviation_max']:.3f}")
+            freq = "–" if f1 is None else f"{f1:.2f} Hz ({df:+.2f} %)"
+            cells.append(f"{r['deviation_pp']:.3f} ({d:+.2f} %); {span}; {freq}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

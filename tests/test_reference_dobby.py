@@ -1,11 +1,12 @@
 """The co-rotational reference of the whole machine (tests/reference/, issue 21), verified on its
 own against closed forms and conservation laws, then against jaxdobby.
 
-Fast tests: the co-rotational element against beam theory (linear stiffness at rest, cantilever
-deflection and frequency, the tension-stiffened cantilever), the supported arm's frequencies
-against jaxdobby's separately written FE, the reference's equations with jaxdobby's assumptions
-switched on against jaxdobby's own equations, energy conservation of the frozen machine. Slow
-tests (``-m slow``): the periodic steady state at 800 r/min against jaxdobby.
+Default tests (seconds): the co-rotational element against beam theory (linear stiffness at
+rest, cantilever deflection and frequency, the tension-stiffened cantilever) and the supported
+arm's frequencies against jaxdobby's separately written FE. Slow tests (``-m slow``, about a
+minute each: they compile the machine's residual): the reference's equations with jaxdobby's
+assumptions switched on against jaxdobby's own equations, energy conservation of the frozen
+machine, and the periodic steady state at 800 r/min against jaxdobby.
 """
 
 import jax
@@ -15,7 +16,7 @@ import pytest
 import scipy.linalg
 
 from jaxdobby import Machine, OperatingPoint
-from jaxdobby.dobby import arm_modes, build_model, equations_at, rigid_state
+from jaxdobby.dobby import _reference_direction, arm_modes, build_model, equations_at, rigid_state
 from tests.reference.corotational_arm import arm_from_design, free_dofs, spring, straight_beam
 from tests.reference.dobby_nonlinear import Options, Reference
 
@@ -33,7 +34,7 @@ def test_corotational_energy_hessian_at_rest_is_the_linear_stiffness():
     """At rest the co-rotational energy's Hessian is exactly the Euler–Bernoulli frame stiffness
     (the same interpolation): 1e-12 relative, rounding only (a wrong factor gives ≥ 1e-2)."""
     arm = arm_from_design(Machine.default().arm)
-    hess = np.asarray(jax.hessian(arm.strain_energy)(jnp.zeros(arm.n_dofs)))
+    hess = np.asarray(jax.jit(jax.hessian(arm.strain_energy))(jnp.zeros(arm.n_dofs)))
     assert np.abs(hess - arm.K).max() < 1e-12 * np.abs(arm.K).max()
 
 
@@ -85,7 +86,7 @@ def test_supported_arm_frequencies_match_jaxdobbys_fe():
     Euler–Bernoulli mesh, so 1e-9 (measured 1e-11); the reference's section rotary inertia lowers
     the first mode by 0.86 % (999.2 → 990.6 Hz), a Rayleigh-beam effect of d/L."""
     machine = Machine.default()
-    n_ref = np.asarray(build_model(machine, OperatingPoint()).ring_direction_ref)
+    n_ref = np.asarray(_reference_direction(machine.chain))
     for rotary, expected in ((False, np.asarray(arm_modes(machine).frequencies) / (2 * np.pi)),
                              (True, None)):
         arm = arm_from_design(machine.arm, rotary_inertia=rotary)
@@ -100,6 +101,7 @@ def test_supported_arm_frequencies_match_jaxdobbys_fe():
             assert hz[0] == pytest.approx(990.63, abs=0.05)
 
 
+@pytest.mark.slow
 def test_reference_with_jaxdobbys_assumptions_gives_jaxdobbys_equations():
     """With the ring link along the rigid direction, linearised stiffening from the rigid preload,
     no rotary inertia and modal damping, the reference's generalised forces (written separately:
@@ -154,6 +156,7 @@ def _machine_energy(ref, q, v, row):
             + 0.5 * warp_rate * (chain[1] - m.mid_level) ** 2)
 
 
+@pytest.mark.slow
 def test_frozen_machine_conserves_energy():
     """Undamped, the mechanism frozen in the bottom dwell (ω = α = 0, eccentric pin fixed), the
     arm released from its static equilibrium plus the deflection of an extra 500 N at the link-11
@@ -223,9 +226,10 @@ def test_reference_with_jaxdobbys_assumptions_matches_jaxdobby_with_all_modes(st
 @pytest.mark.slow
 def test_reference_agrees_with_default_jaxdobby_at_800_rpm(steady_800):
     """jaxdobby's default model (4 modes) against the reference at 800 r/min. The error budget
-    (benchmarks/results/model_form_budget.md) at 800 r/min: modal truncation 4 of 31 modes
-    −0.7 %, linearised stiffening, fixed ring-link direction and rotary inertia ≤ 0.02 % each,
-    integration 0.03 %: the p-p within 1 % (measured −0.6 %), min and max within 1 % of the p-p."""
+    (benchmarks/results/model_form_budget.md) at 800 r/min: modal truncation (4 of 31 modes)
+    −0.61 %; linearised stiffening, fixed ring-link direction, rotary inertia and the damping
+    model ≤ 0.02 % each; the reference's time step 0.03 %: sum 0.7 %, so the p-p within 1 %
+    (measured −0.6 %), min and max within 1 % of the p-p."""
     ref, jd = steady_800["reference"], steady_800["jaxdobby"]
     assert jd["deviation_pp"] == pytest.approx(ref["deviation_pp"], rel=1e-2)
     for key in ("deviation_min", "deviation_max"):

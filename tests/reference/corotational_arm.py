@@ -91,7 +91,8 @@ class Arm:
         self.position = np.zeros(3 * n)
         self.position[0::3], self.position[1::3] = self.X[:, 0], self.X[:, 1]
         self.rotation = np.zeros(3 * n)
-        self.rotation[0::3], self.rotation[1::3], self.rotation[2::3] = -self.X[:, 1], self.X[:, 0], 1
+        self.rotation[0::3], self.rotation[1::3] = -self.X[:, 1], self.X[:, 0]
+        self.rotation[2::3] = 1.0
         self.x = np.zeros(3 * n)
         self.x[0::3] = 1.0
         self.y = np.zeros(3 * n)

@@ -61,6 +61,7 @@ class Options:
 
     ring: str = "follow"            # "follow" | "fixed"
     elastic: str = "corotational"   # or "linear", "linear-inertia", "linear-actual", "linear-none"
+    preload_ring: str = "mid-lift"  # ring direction of the preload's static solves, or "actual"
     rotary_inertia: bool = True
     damping: str = "modal"          # "modal" | "stiffness" | "none"
     refine: int = 1
@@ -126,6 +127,10 @@ class Reference:
         (body), rigid heald-frame height, element preload forces (``elastic="linear*"``)."""
         row, link_force = _rigid_rows(self.model, jnp.asarray(t))
         row["preload"] = jnp.asarray(self._preload(row, link_force))
+        if self.options.preload_ring == "actual" and self.options.elastic == "linear-actual":
+            row["link_map"] = jnp.asarray(np.stack([
+                self.link_force_map(self.arm.K + spring(self.arm, self.j, n, self.k9))
+                for n in np.asarray(row["n"])]))
         return row
 
     def _preload(self, row, link_force):
@@ -143,23 +148,31 @@ class Reference:
                                                             warp_force=0.0))
             lf = np.asarray(_rigid_rows(mi, row["t"])[1])
         gb = np.stack([-g * np.sin(theta), -g * np.cos(theta)], -1)  # Aᵀ(0, −g)
-        loads = (om[:, None] ** 2 * (arm.M_t @ arm.position) - al[:, None] * (self.mass @ arm.rotation)
+        loads = (om[:, None] ** 2 * (arm.M_t @ arm.position)
+                 - al[:, None] * (self.mass @ arm.rotation)
                  + gb[:, :1] * (arm.M_t @ arm.x) + gb[:, 1:] * (arm.M_t @ arm.y))
         loads[:, 3 * self.p:3 * self.p + 2] += lf
         f = self.free
         u = np.zeros_like(loads)
-        u[:, f] = np.linalg.solve(self.k_supported[np.ix_(f, f)], loads[:, f].T).T
+        if self.options.preload_ring == "actual":  # supports with the ring's direction at t
+            nb = np.asarray(row["n"])
+            for i in range(n_t):
+                k = arm.K + spring(arm, self.j, nb[i], self.k9)
+                u[i, f] = np.linalg.solve(k[np.ix_(f, f)], loads[i, f])
+        else:
+            u[:, f] = np.linalg.solve(self.k_supported[np.ix_(f, f)], loads[:, f].T).T
         return np.stack([arm.axial_forces(ui) for ui in u])
 
-    def link_force_map(self):
+    def link_force_map(self, k_supported=None):
         """Element axial forces [N] per unit body-frame force [N] at the link-11 joint, (n_el, 2):
         the static solve of the supported arm (as the preload's)."""
+        k = self.k_supported if k_supported is None else k_supported
         f, out = self.free, []
         for c in range(2):
             load = np.zeros(self.arm.n_dofs)
             load[3 * self.p + c] = 1.0
             u = np.zeros(self.arm.n_dofs)
-            u[f] = np.linalg.solve(self.k_supported[np.ix_(f, f)], load[f])
+            u[f] = np.linalg.solve(k[np.ix_(f, f)], load[f])
             out.append(self.arm.axial_forces(u))
         return np.stack(out, 1)
 
@@ -184,7 +197,8 @@ class Reference:
         else:
             preload = row["preload"]
             if opt.elastic == "linear-actual":
-                preload = preload + jnp.asarray(self.link_force_map()) @ chain_force
+                link_map = row.get("link_map", jnp.asarray(self.link_force_map()))
+                preload = preload + link_map @ chain_force
             r = r + arm.K @ u + jnp.einsum("e,eij,j->i", preload, arm.K_sigma, u)
         jd = slice(3 * self.j, 3 * self.j + 2)
         if opt.ring == "follow":
@@ -287,7 +301,8 @@ class Reference:
             x1, phi, y, err, qs, vs = cycle(x0, (mid, end), self.h)
             gap = float(jnp.max(jnp.abs(x1 - x0)) / max(float(jnp.max(jnp.abs(x1))), 1e-30))
             if verbose:
-                print(f"shooting {it}: periodicity {gap:.2e}, newton residual {float(err.max()):.1e}")
+                print(f"shooting {it}: periodicity {gap:.2e}, "
+                      f"newton residual {float(err.max()):.1e}")
             if gap < tol:
                 break
             x0 = x0 + jnp.linalg.solve(jnp.eye(2 * self.n) - phi, x1 - x0)
