@@ -2,6 +2,8 @@
 
     PYTHONPATH=. python3 benchmarks/model_form_budget.py            # 400, 800, 1000, 1200 r/min
     PYTHONPATH=. python3 benchmarks/model_form_budget.py --quick    # 800 r/min, few variants
+    ... --only "VARIANT" ...; ... --jaxdobby-only; ... --merge A.json B.json   # in pieces
+    ... --figure-only                                   # redraw the figure, print docs' table
 
 The reference (``tests/reference/dobby_nonlinear.py``: every FE DOF of the arm, co-rotational
 strain energy, ring link 9 a two-force member whose direction follows the motion, section rotary
@@ -12,7 +14,10 @@ each: heald-frame deviation peak-to-peak, min, max [mm] and the first coupled fr
 mid-lift [Hz] (the linearisation about the steady cycle, time frozen, speed terms included —
 :func:`tests.reference.dobby_nonlinear.frozen_frequencies`; jaxdobby's own speed-free
 ``natural_frequencies`` is 106.64 Hz at every speed). Writes
-``benchmarks/results/model_form_budget{_quick}.json`` and ``.md``.
+``benchmarks/results/model_form_budget{_quick}.json`` and ``.md`` and
+``docs/figures/model_form_budget.png``. A full run is ~40 reference cycles of 4000 implicit
+steps (about 15 min on one free core); rows are saved as they come
+(``model_form_budget_partial.json``), and runs in pieces are merged with ``--merge``.
 """
 
 from __future__ import annotations

@@ -28,7 +28,6 @@ M_r = ∫ρI ψ'ᵀψ' (ψ = dw/dx) is a switch (Euler–Bernoulli: off; Rayleig
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 

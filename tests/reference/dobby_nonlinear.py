@@ -29,7 +29,8 @@ loads and the rigid link-11 force — jaxdobby's linearised stiffening), ``"line
 same without gravity and warp force in the preload), ``"linear-actual"`` (the same with the
 *actual* link-11 force of the coupled motion in the preload instead of the rigid one — the fix
 the budget points to), ``"linear-none"`` (no stiffening),
-``rotary_inertia=False``, ``damping="stiffness"``.
+``rotary_inertia=False``, ``damping="stiffness"``; ``preload_ring="actual"`` solves the
+preload's static problems with the ring link along its direction at t (not at mid-lift).
 
 Time integration: the implicit midpoint rule (symmetric, A-stable, second order) on a uniform
 grid of ``steps`` per cycle, a chord-Newton solve per step; the periodic state by Newton
@@ -46,7 +47,6 @@ import jax.scipy.linalg as jsl
 import numpy as np
 import scipy.linalg
 
-from jaxdobby import modulator
 from jaxdobby.dobby import (build_model, chain_from_joint, chain_inertia, crank_angle,
                             generalised_chain_forces, rigid_joint_position, rigid_state)
 from tests.reference.corotational_arm import arm_from_design, free_dofs, spring
