@@ -1,12 +1,12 @@
 """The co-rotational reference of the whole machine (tests/reference/, issue 21), verified on its
 own against closed forms and conservation laws, then against jaxdobby.
 
-Default tests (seconds): the co-rotational element against beam theory (linear stiffness at
-rest, cantilever deflection and frequency, the tension-stiffened cantilever) and the supported
-arm's frequencies against jaxdobby's separately written FE. Slow tests (``-m slow``, about a
-minute each: they compile the machine's residual): the reference's equations with jaxdobby's
-assumptions switched on against jaxdobby's own equations, energy conservation of the frozen
-machine, and the periodic steady state at 800 r/min against jaxdobby.
+Default tests (seconds each, ~25 s together on a free core): the co-rotational element against
+beam theory (linear stiffness at rest, cantilever deflection and frequency, the
+tension-stiffened cantilever), the supported arm's frequencies against jaxdobby's separately
+written FE, the reference's equations with jaxdobby's assumptions switched on against
+jaxdobby's own equations, energy conservation of the frozen machine. Slow (``-m slow``, ~30 s):
+the periodic steady state at 800 r/min against jaxdobby.
 """
 
 import jax
@@ -101,7 +101,6 @@ def test_supported_arm_frequencies_match_jaxdobbys_fe():
             assert hz[0] == pytest.approx(990.63, abs=0.05)
 
 
-@pytest.mark.slow
 def test_reference_with_jaxdobbys_assumptions_gives_jaxdobbys_equations():
     """With the ring link along the rigid direction, linearised stiffening from the rigid preload,
     no rotary inertia and modal damping, the reference's generalised forces (written separately:
@@ -156,7 +155,6 @@ def _machine_energy(ref, q, v, row):
             + 0.5 * warp_rate * (chain[1] - m.mid_level) ** 2)
 
 
-@pytest.mark.slow
 def test_frozen_machine_conserves_energy():
     """Undamped, the mechanism frozen in the bottom dwell (ω = α = 0, eccentric pin fixed), the
     arm released from its static equilibrium plus the deflection of an extra 500 N at the link-11
