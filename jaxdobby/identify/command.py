@@ -66,8 +66,10 @@ def parse_bounds(items, keys) -> dict[str, tuple[float, float]]:
 
 def run(ns: argparse.Namespace, setup_from_args) -> int:
     """Run ``jaxdobby identify``; returns the exit status."""
+    from ..modulator import cycle_period
     from .fit import identify
-    from .measurement import read_csv
+    from .measurement import check_length, read_csv
+    from .model import parameterisation
     from .report import summary, text, write
 
     if not 1 <= ns.starts <= 64:
@@ -77,6 +79,8 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
     setup, options = setup_from_args(ns)
     meas = read_csv(ns.measured)
     bounds = parse_bounds(ns.bounds, ns.fit)
+    parameterisation(setup, ns.fit, bounds)  # every check before the long part
+    check_length(meas, float(cycle_period(setup.operating.speed)))
     print("identifying (the first run compiles: a few minutes)...", file=sys.stderr, flush=True)
     result = identify(setup, meas, ns.fit, options=options, starts=ns.starts, spread=ns.spread,
                       bounds=bounds, seed=ns.seed)
