@@ -173,13 +173,15 @@ def _write(tmp_path, meas, name="trace.csv"):
 
 def test_cli_json_and_outputs(fitted, tmp_path, capsys):
     """The command on the twin trace, started from the in-process estimate (a configuration
-    file: the fit then converges in a few steps) must return that estimate."""
+    file, both starts there: the fit then converges in a few steps) must return that
+    estimate."""
     meas, res = fitted
     out = tmp_path / "out"
     start = tmp_path / "start.toml"
     start.write_text(to_toml(res.setup))
     code = main(["identify", _write(tmp_path, meas), "--speed", "800", "--fit", *KEYS,
-                 "--config", str(start), "--starts", str(LANES), "--json", "--out", str(out)])
+                 "--config", str(start), "--starts", str(LANES), "--spread", "0", "--json",
+                 "--out", str(out)])
     printed = json.loads(capsys.readouterr().out)
     assert code == 0
     assert {"estimates", "standard_errors", "correlation", "residual_rms", "phase_deg",

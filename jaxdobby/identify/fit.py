@@ -79,7 +79,9 @@ class Identified:
         warnings: one line each (not identifiable parameters, bounds, convergence).
         setup: the identified machine at the operating point.
         fitted: (acceleration [m/s²], position [mm]) of the model at the measured times.
-        jacobian: J of the weighted residuals in u at the estimate (for checks), (n, P).
+        jacobian: J of the weighted residuals in u at the estimate (for checks), shape
+            (2·m, P): the acceleration rows, then the position rows, each padded to m samples
+            with zero rows; the columns are ``unknowns``.
         covariance: C of u, (P, P) (the active unknowns; see ``unknowns``).
         unknowns: names of the columns of ``covariance``.
         starts: each start's final cost ½‖r‖².

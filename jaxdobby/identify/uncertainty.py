@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..parameters import PARAMETERS, Setup, apply
+from ..parameters import Setup, apply
 from .measurement import Measurement
 from .model import MM, Parameterisation
 
@@ -108,7 +108,3 @@ def summarise(setup: Setup, meas: Measurement, par: Parameterisation, u: np.ndar
         covariance=cov, unknowns=tuple(names), starts=np.asarray(costs),
         sigma=tuple(float(x) for x in sigma))
 
-
-def unit(key: str) -> str:
-    """The users' unit of a parameter by TOML key."""
-    return next(p.unit for p in PARAMETERS.values() if p.key == key)
