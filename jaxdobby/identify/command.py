@@ -83,7 +83,8 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
     check_length(meas, float(cycle_period(setup.operating.speed)))
     print("identifying (the first run compiles: a few minutes)...", file=sys.stderr, flush=True)
     result = identify(setup, meas, ns.fit, options=options, starts=ns.starts, spread=ns.spread,
-                      bounds=bounds, seed=ns.seed)
+                      bounds=bounds, seed=ns.seed,
+                      progress=lambda line: print(line, file=sys.stderr, flush=True))
     summ = summary(result)
     if ns.out:
         paths = write(ns.out, meas, result, summ, options, figures=not ns.no_figures)
