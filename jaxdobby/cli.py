@@ -9,6 +9,7 @@ Commands (``jaxdobby COMMAND --help`` for each):
 * ``optimize`` — gradient-based design of the bending arm;
 * ``beam`` — the natural frequencies and mode shapes of the default bending arm;
 * ``campbell`` — the resonance map (coupled frequencies, pick-rate harmonics, deviation).
+* ``identify`` — fit parameters of the machine to a measured heald-frame trace.
 
 The command line speaks the users' units (mm, r/min, N) and converts to SI at this boundary.
 It is the only place that switches JAX to float64 and the only place that prints. Bad input
@@ -254,6 +255,12 @@ def _optimize(ns: argparse.Namespace) -> int:
     return run(ns)
 
 
+def _identify(ns: argparse.Namespace) -> int:
+    from .identify.command import run
+
+    return run(ns, setup_from_args)
+
+
 def _sobol(argv: Sequence[str]) -> int:
     from .sensitivity.command import main as sobol_main
 
@@ -323,6 +330,13 @@ def build_parser() -> argparse.ArgumentParser:
     beam = sub.add_parser("beam", help="natural frequencies of the default bending arm")
     beam.add_argument("--modes", type=int, default=8, help="number of modes to list (1-30)")
     beam.set_defaults(run=_beam)
+    ident = sub.add_parser("identify", help="fit machine parameters to a measured heald-frame "
+                                            "trace (least squares through the steady state)")
+    _add_model_arguments(ident)
+    from .identify.command import add_arguments as add_identify_arguments
+
+    add_identify_arguments(ident)
+    ident.set_defaults(run=_identify)
     return parser
 
 

@@ -1,0 +1,263 @@
+"""``jaxdobby identify``: twin experiments, the covariance against finite differences, an
+unidentifiable pair, the interpolation, and bad input.
+
+A twin experiment makes a measured-like trace with the model itself (chosen parameters, white
+noise, an arbitrary time origin and position zero) and fits it from the default machine. Every
+test of this module shares one compiled program: the fit of (heald_frame_mass_kg,
+damping_ratio) with two starts (the twin traces go through it too, see
+:func:`jaxdobby.identify.twin.model_trace`). The coverage study over repeated noise draws is
+marked slow.
+"""
+
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxdobby.cli import main
+from jaxdobby.config import load, to_toml
+from jaxdobby.identify import identify, synthetic
+from jaxdobby.identify.measurement import Measurement, to_csv
+from jaxdobby.identify.model import MM, fourier, interpolate, parameterisation
+from jaxdobby.identify.twin import model_trace
+from jaxdobby.identify.uncertainty import covariance, summarise
+from jaxdobby.parameters import PARAMETERS, Setup, apply
+
+KEYS = ("heald_frame_mass_kg", "damping_ratio")
+LANES = 2
+TRUE = {"heald_frame_mass": 13.0, "damping_ratio": 0.03}
+NOISE = dict(noise_acceleration=5.0, noise_position_mm=0.05)
+"""About 1 % of the acceleration's RMS and 0.1 % of the stroke: a good accelerometer and a
+laser displacement sensor."""
+TWIN = dict(phase=0.37, offset_mm=3.0, start_s=17.25, cycles=2.0, rate_hz=4000.0)
+
+
+def twin(seed, **kw):
+    true = apply(Setup(), TRUE)
+    return synthetic(true, **(TWIN | NOISE | kw), seed=seed, keys=KEYS, lanes=LANES)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    meas = twin(seed=0)
+    return meas, identify(Setup(), meas, KEYS, starts=LANES)
+
+
+def test_twin_experiment_recovers_the_parameters_within_their_errors(fitted):
+    meas, res = fitted
+    assert res.converged and not res.warnings
+    for key, name in zip(KEYS, TRUE):
+        est, se = res.estimates[key], res.standard_errors[key]
+        # the claim: the truth lies within 3 reported standard errors (a single draw; the
+        # coverage of ±2σ over many draws is the slow test) and the errors are small enough
+        # (< 3 %) for the claim to mean something
+        assert abs(est - TRUE[name]) < 3 * se, (key, est, se)
+        assert se < 0.03 * TRUE[name]
+    assert abs((res.phase - TWIN["phase"] + 0.5) % 1.0 - 0.5) < 3 * res.phase_error
+    assert abs(res.position_offset / MM - TWIN["offset_mm"]) < 0.01
+    # the residuals are the noise: RMS within 10 % of the added standard deviations
+    # (2400 samples: the RMS of white noise scatters by ~1.5 %)
+    np.testing.assert_allclose(res.residual_rms["acceleration_m_s2"],
+                               NOISE["noise_acceleration"], rtol=0.1)
+    np.testing.assert_allclose(res.residual_rms["position_mm"], NOISE["noise_position_mm"],
+                               rtol=0.1)
+
+
+def _fd_jacobian(res, meas, h=1e-5):
+    """Columns dr/dz (central differences of the model through new steady states), dr/dφ and
+    dr/db for the weighted residuals of ``res`` at its estimate."""
+    n = meas.time.size
+    weights = 1.0 / np.asarray(res.sigma)  # the fit's channel weights
+    cols = []
+
+    def trace(setup, phase):
+        acc, pos = model_trace(setup, meas.time, phase, keys=KEYS, lanes=LANES)
+        return np.concatenate([acc * weights[0], (pos / MM) * weights[1]])
+
+    for key, name in zip(KEYS, TRUE):
+        theta = res.estimates[key]
+        plus = trace(apply(res.setup, {name: theta * np.exp(h)}), res.phase)
+        minus = trace(apply(res.setup, {name: theta * np.exp(-h)}), res.phase)
+        cols.append((plus - minus) / (2 * h))
+    hp = 1e-7
+    cols.append((trace(res.setup, res.phase + hp) - trace(res.setup, res.phase - hp)) / (2 * hp))
+    cols.append(np.concatenate([np.zeros(n), np.full(n, weights[1])]))
+    return np.stack(cols, axis=1)
+
+
+def test_jacobian_and_covariance_match_finite_differences(fitted):
+    meas, res = fitted
+    n = meas.time.size
+    size = res.jacobian.shape[0] // 2
+    jac = np.concatenate([res.jacobian[:n], res.jacobian[size:size + n]])
+    fd = _fd_jacobian(res, meas)
+    # central differences with h = 1e-5 in ln θ: truncation ~h² ≈ 1e-10, the steady state's
+    # periodicity tolerance 1e-9 over 2h: ~1e-4 of a column's scale at most
+    for i in range(jac.shape[1]):
+        scale = np.max(np.abs(fd[:, i]))
+        np.testing.assert_allclose(jac[:, i], fd[:, i], atol=2e-4 * scale, err_msg=str(i))
+    r = np.zeros(jac.shape[0])
+    r[0] = 1.0
+    c_exact = covariance(jac, r, jac.shape[0])
+    c_fd = covariance(fd, r, jac.shape[0])
+    np.testing.assert_allclose(np.sqrt(np.diag(c_exact)), np.sqrt(np.diag(c_fd)), rtol=1e-3)
+
+
+def test_the_product_modulus_times_area_is_flagged_not_identifiable(fitted):
+    """Only E·A of the ring link enters the model (its stiffness): their columns in ln θ are
+    equal, JᵀJ singular, and both must be flagged, with standard errors beyond the estimates."""
+    meas, res = fitted
+    keys = ("ring_link_modulus_pa", "ring_link_area_mm2")
+    names = [PARAMETERS[n].name for n in ("ring_link_modulus", "ring_link_area")]
+    par = parameterisation(res.setup, keys)
+    h = 1e-4
+    n = meas.time.size
+    cols = []
+    for name in names:
+        theta = float(PARAMETERS[name].get(res.setup))
+        tr = [model_trace(apply(res.setup, {name: theta * np.exp(s)}), meas.time, res.phase,
+                          keys=KEYS, lanes=LANES) for s in (h, -h)]
+        cols.append(np.concatenate([(tr[0][0] - tr[1][0]), (tr[0][1] - tr[1][1]) / MM]) / (2 * h))
+    size = n
+    acc, pos = model_trace(res.setup, meas.time, res.phase + 1e-7, keys=KEYS, lanes=LANES)
+    acc0, pos0 = model_trace(res.setup, meas.time, res.phase - 1e-7, keys=KEYS, lanes=LANES)
+    cols.append(np.concatenate([acc - acc0, (pos - pos0) / MM]) / 2e-7)
+    cols.append(np.concatenate([np.zeros(n), np.ones(n)]))
+    jac = np.stack(cols, axis=1)
+    rng = np.random.default_rng(1)
+    r = rng.standard_normal(2 * n)
+    u = np.zeros(4)
+    out = summarise(res.setup, meas, par, u, r, jac, (1.0, 1.0), size, True, np.zeros(1))
+    # finite differences leave the two columns equal to ~1e-5, not exactly: the standard
+    # errors are then huge rather than infinite — at least the estimates themselves
+    assert all(not out.standard_errors[k] < out.estimates[k] for k in keys), out.standard_errors
+    assert any("not identifiable" in w and keys[0] in w for w in out.warnings)
+    assert any("not identifiable" in w and keys[1] in w for w in out.warnings)
+    # the identifiable pair of the twin fit is not flagged
+    assert not res.warnings
+
+
+def test_trigonometric_interpolation_is_exact_for_a_band_limited_trace():
+    n = 64
+    t = np.arange(n) / n
+    f = lambda x: np.cos(2 * np.pi * 3 * x + 0.4) + 0.5 * np.sin(2 * np.pi * 31 * x)  # noqa
+    x = np.random.default_rng(0).uniform(-3.0, 7.0, 50)
+    # harmonics below n/2 are reproduced to rounding at any (also far, negative) phase
+    np.testing.assert_allclose(interpolate(fourier(jnp.asarray(f(t))), jnp.asarray(x)), f(x),
+                               atol=1e-12)
+
+
+def test_model_trace_interpolation_error_is_far_below_the_noise(fitted):
+    """The steady cycle interpolated from every other grid point against the points left out:
+    the interpolation error of the full grid is smaller still (spectral convergence)."""
+    from jaxdobby.identify.model import cycle_grids, solver_settings
+
+    setup = Setup()
+    method, steps = solver_settings(setup, None)
+    par = parameterisation(setup, KEYS)
+    _, grid, _ = cycle_grids(setup, par.names, par.log, method, steps, np.zeros((LANES, 2)))
+    g = np.asarray(grid[0])
+    n = g.shape[1]
+    half = interpolate(fourier(jnp.asarray(g[:, ::2])), jnp.asarray(np.arange(1, n, 2) / n))
+    err = np.max(np.abs(np.asarray(half) - g[:, 1::2]), axis=1)
+    # 5 % of the twin's noise (5 m/s², 0.05 mm) at half the grid
+    assert err[0] < 0.25 and err[1] < 2.5e-3, err
+
+
+def _write(tmp_path, meas, name="trace.csv"):
+    path = tmp_path / name
+    path.write_text(to_csv(meas))
+    return str(path)
+
+
+def test_cli_json_and_outputs(fitted, tmp_path, capsys):
+    """The command on the twin trace, started from the in-process estimate (a configuration
+    file, both starts there: the fit then converges in a few steps) must return that
+    estimate."""
+    meas, res = fitted
+    out = tmp_path / "out"
+    start = tmp_path / "start.toml"
+    start.write_text(to_toml(res.setup))
+    code = main(["identify", _write(tmp_path, meas), "--speed", "800", "--fit", *KEYS,
+                 "--config", str(start), "--starts", str(LANES), "--spread", "0", "--json",
+                 "--out", str(out)])
+    printed = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert {"estimates", "standard_errors", "correlation", "residual_rms", "phase_deg",
+            "converged"} <= set(printed)
+    # the CSV holds the samples to 17 digits: the same minimum, to the optimiser's tolerance
+    # (a relative step of 1e-7) and far inside the standard errors
+    for key in KEYS:
+        np.testing.assert_allclose(printed["estimates"][key], res.estimates[key], rtol=1e-5)
+        np.testing.assert_allclose(printed["standard_errors"][key], res.standard_errors[key],
+                                   rtol=1e-3)
+    np.testing.assert_allclose(printed["phase_deg"], 720.0 * res.phase, atol=1e-4)
+    assert (out / "identify.json").exists() and (out / "identify_fit.png").exists()
+    # identified.toml goes through the configuration parser of `simulate --config` (every key
+    # and range checked) and holds the estimates; the run itself is in the slow test below
+    setup, _ = load(out / "identified.toml")
+    for key, name in zip(KEYS, TRUE):
+        np.testing.assert_allclose(float(PARAMETERS[name].get(setup)),
+                                   printed["estimates"][key], rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_identified_toml_runs_through_simulate(fitted, tmp_path, capsys):
+    from jaxdobby.identify.report import summary, write
+
+    meas, res = fitted
+    write(tmp_path, meas, res, summary(res), figures=False)
+    assert main(["simulate", "--config", str(tmp_path / "identified.toml"), "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["converged"]
+
+
+BAD = [
+    ("time_s,other\n0,1\n", "heald_frame_acceleration_m_s2"),
+    ("time_s,heald_frame_position_mm\n0,1\n0.002,2\n0.001,3\n", "increase strictly"),
+    ("time_s,heald_frame_position_mm\n0,1\n0.001,2\n0.003,3\n", "uniformly sampled"),
+    ("time_s,heald_frame_position_mm\n0,1\n0.001,nan\n0.002,3\n", "NaN"),
+    ("time_s,heald_frame_position_mm\n0,1\n0.001,2\n0.002,3\n", "less than one heald-frame"),
+]
+
+
+@pytest.mark.parametrize("text, words", BAD)
+def test_bad_trace_is_one_line_exit_2(tmp_path, capsys, text, words):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    code = main(["identify", str(path), "--fit", "heald_frame_mass_kg"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and words in err, err
+
+
+@pytest.mark.parametrize("key, words", [("heald_frame_mass", None), ("n_modes", "integer"),
+                                        ("mass_kg", "unknown parameter"),
+                                        ("depth_mm", "list parameter"),
+                                        ("speed_rpm", "not fitted")])
+def test_bad_parameter_is_one_line_exit_2(tmp_path, capsys, key, words):
+    if words is None:  # a registry name is accepted as well as its key: go on to a bad bound
+        args = ["--bounds", "heald_frame_mass=5:1"]
+        words = "LOW must be < HIGH"
+    else:
+        args = []
+    t = np.arange(0, 0.2, 1e-3)
+    path = _write(tmp_path, Measurement(t, position=np.sin(t)))
+    code = main(["identify", path, "--fit", key, *args])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and words in err, err
+
+
+@pytest.mark.slow
+def test_coverage_of_two_sigma_over_noise_draws():
+    """Over repeated noise draws the truth lies within ±2 reported σ about 95 % of the time
+    (the Gauss–Newton covariance is honest). 40 draws × 2 parameters: a binomial 95 % count
+    has standard deviation ~2.4 %; accept 85…100 %."""
+    hits = []
+    for seed in range(1, 41):
+        meas = twin(seed)
+        res = identify(Setup(), meas, KEYS, starts=LANES)
+        assert res.converged
+        hits += [abs(res.estimates[k] - TRUE[n]) < 2 * res.standard_errors[k]
+                 for k, n in zip(KEYS, TRUE)]
+    assert 0.85 <= np.mean(hits) <= 1.0, np.mean(hits)
