@@ -5,8 +5,9 @@ A twin experiment makes a measured-like trace with the model itself (chosen para
 noise, an arbitrary time origin and position zero) and fits it from the default machine. Every
 test of this module shares one compiled program: the fit of (heald_frame_mass_kg,
 damping_ratio) with two starts (the twin traces go through it too, see
-:func:`jaxdobby.identify.twin.model_trace`). The coverage study over repeated noise draws is
-marked slow.
+:func:`jaxdobby.identify.twin.model_trace`). That program takes minutes to compile on two
+cores, so the tests that fit are marked slow (run them with ``-m slow``), as is the coverage
+study over repeated noise draws; the default suite keeps the interpolation and input checks.
 """
 
 import json
@@ -44,6 +45,7 @@ def fitted():
     return meas, identify(Setup(), meas, KEYS, starts=LANES)
 
 
+@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
 def test_twin_experiment_recovers_the_parameters_within_their_errors(fitted):
     meas, res = fitted
     assert res.converged and not res.warnings
@@ -86,6 +88,7 @@ def _fd_jacobian(res, meas, h=1e-5):
     return np.stack(cols, axis=1)
 
 
+@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
 def test_jacobian_and_covariance_match_finite_differences(fitted):
     meas, res = fitted
     n = meas.time.size
@@ -104,6 +107,7 @@ def test_jacobian_and_covariance_match_finite_differences(fitted):
     np.testing.assert_allclose(np.sqrt(np.diag(c_exact)), np.sqrt(np.diag(c_fd)), rtol=1e-3)
 
 
+@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
 def test_the_product_modulus_times_area_is_flagged_not_identifiable(fitted):
     """Only E·A of the ring link enters the model (its stiffness): their columns in ln θ are
     equal, JᵀJ singular, and both must be flagged, with standard errors beyond the estimates."""
@@ -148,6 +152,7 @@ def test_trigonometric_interpolation_is_exact_for_a_band_limited_trace():
                                atol=1e-12)
 
 
+@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
 def test_model_trace_interpolation_error_is_far_below_the_noise(fitted):
     """The steady cycle interpolated from every other grid point against the points left out:
     the interpolation error of the full grid is smaller still (spectral convergence)."""
@@ -171,6 +176,7 @@ def _write(tmp_path, meas, name="trace.csv"):
     return str(path)
 
 
+@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
 def test_cli_json_and_outputs(fitted, tmp_path, capsys):
     """The command on the twin trace, started from the in-process estimate (a configuration
     file, both starts there: the fit then converges in a few steps) must return that
