@@ -102,6 +102,8 @@ def _common_keys(data):
     assert data["rows"]
 
 
+@pytest.mark.slow  # ~50 s of cold processes: a smoke run of the benchmark script, whose
+# numbers the default suite checks elsewhere (collocation vs adaptive: test_dobby)
 def test_bench_simulate_quick(tmp_path):
     _run("bench_simulate.py", tmp_path)
     data = json.loads((tmp_path / "simulate_quick.json").read_text())
