@@ -109,7 +109,7 @@ def call_stored(name: str, fn: Callable, args: Sequence, *, static_key: str,
 
 def main() -> None:
     """Make the shipped programs of the default configuration (``python -m jaxdobby.programs``)."""
-    from .cli import _configure_jax
+    from .command_line import _configure_jax
 
     _configure_jax()
     from .config import RunOptions

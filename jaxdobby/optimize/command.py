@@ -184,7 +184,7 @@ def build_study(ns: argparse.Namespace):
     """The :class:`~jaxdobby.optimize.study.Study` described by the flags and problem file."""
     import jax.numpy as jnp
 
-    from ..cli import setup_from_args
+    from ..command_line import setup_from_args
     from .design import VARIABLES, Constraints, DesignSpace
     from .loop import Settings
     from .objective import Objective

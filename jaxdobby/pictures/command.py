@@ -85,7 +85,7 @@ def simulate_pictures(ns: argparse.Namespace):
 
 # -- jaxdobby campbell -----------------------------------------------------------------------
 def add_campbell_arguments(p: argparse.ArgumentParser) -> None:
-    from ..cli import _add_model_arguments
+    from ..command_line import _add_model_arguments
 
     p.add_argument("--values", type=float, nargs="+", metavar="RPM",
                    help="loom speeds of the deviation sweep [r/min] (default 400-1200 by 50)")
@@ -138,7 +138,7 @@ def run_campbell(ns: argparse.Namespace) -> int:
     """``jaxdobby campbell``: the resonance map of the configured machine."""
     import equinox as eqx
 
-    from ..cli import _status, setup_from_args
+    from ..command_line import _status, setup_from_args
     from ..dobby import build_model
     from ..io import write_json, write_text
     from ..plots import plt
