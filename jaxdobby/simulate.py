@@ -287,6 +287,7 @@ def summary_of(arrays: dict, machine: Machine) -> dict[str, float | list | bool]
     """The summary in the users' units (the keys of ``jaxdobby simulate --json``) from
     :func:`report_arrays` of a run of ``machine``."""
     from .stress.summary import stress_summary_of, warning_entries
+
     m = {k.removeprefix("metric."): float(v) for k, v in arrays.items()
          if k.startswith("metric.")}
     mm = 1e3
@@ -363,11 +364,10 @@ def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, 
         directory: where to store and look for programs; None: only the shipped ones.
     """
     from .programs import call_stored
+    from .stress.cycle import stress_of_arrays
 
     name, fn, args, static_key = report_program(setup, options)
     arrays = call_stored(name, fn, args, static_key=static_key, directory=directory)
-    from .stress.cycle import stress_of_arrays
-
     series = Timeseries(**{k.removeprefix("series."): v for k, v in arrays.items()
                            if k.startswith("series.")})
     return summary_of(arrays, setup.machine), series, stress_of_arrays(arrays)

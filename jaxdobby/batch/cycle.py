@@ -129,7 +129,8 @@ class StageTables(eqx.Module):
     Attributes:
         frame: the arm frame (:class:`~jaxdobby.batch.chain.Frame`) in physical time.
         stiffness: K(τ) (..., k, k). force: f(τ) (..., k) (see the module docstring).
-        height, velocity: rigid heald-frame height [m] and velocity [m/s].
+        height, velocity, acceleration: rigid heald-frame height [m], velocity [m/s] and
+            acceleration [m/s²].
     """
 
     frame: Frame
@@ -137,6 +138,7 @@ class StageTables(eqx.Module):
     force: Array
     height: Array
     velocity: Array
+    acceleration: Array
 
 
 def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTables:
@@ -160,7 +162,8 @@ def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTa
     force = (omega[..., None]**2 * arm.centrifugal - alpha[..., None] * arm.euler
              + field @ arm.translation.T)
     return StageTables(frame=frame, stiffness=stiffness, force=force, height=ct.height,
-                       velocity=ct.slope * ct.beta_rate)
+                       velocity=ct.slope * ct.beta_rate,
+                       acceleration=ct.slope * ct.h_beta + ct.curvature * ct.beta_rate**2)
 
 
 def node_phases(steps: int) -> Array:

@@ -30,7 +30,6 @@ from jax import Array
 
 from ..dobby import DobbyModel
 from ..steady_state import ShootingResult, attach_root_derivative, relative_residual
-from . import collocation as gl
 from .chain import Downstream, chain_reachable, chain_terms, downstream
 from .collocation import MATRIX2, NODES, dense_weights
 from .cycle import ArmTerms, RigidArm, StageTables, arm_terms, node_phases, rigid_arm, tables_at
@@ -79,8 +78,6 @@ def outputs_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, st: StageTables, 
     """
     flex = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(ds, st.frame, q @ ds.rows.T,
                                                           qdot @ ds.rows.T)
-    rest = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(
-        ds, st.frame, jnp.zeros_like(q[:, :2]), jnp.zeros_like(q[:, :2]))
     omega = st.frame.omega
     force = (st.force - qdot @ arm.damping.T - 2.0 * omega[:, None] * (qdot @ arm.gyroscopic.T)
              - jnp.einsum("nij,nj->ni", st.stiffness, q) + flex.phi[:, None] * flex.g)
@@ -102,9 +99,9 @@ def outputs_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, st: StageTables, 
         link11_force=inertial(link_body),
         modal=q,
         modal_rate=qdot,
-        heald_rigid=rest.height,
-        velocity_rigid=rest.slope * rest.beta_rate,
-        acceleration_rigid=rest.slope * rest.h_beta + rest.curvature * rest.beta_rate**2,
+        heald_rigid=st.height,  # the tables' chain at q = 0
+        velocity_rigid=st.velocity,
+        acceleration_rigid=st.acceleration,
     )
 
 
@@ -120,6 +117,11 @@ class _Chord(NamedTuple):
     run: PassResult
 
 
+def _recorded_pass(cycle: Cycle, x: Array) -> PassResult:
+    """One recording pass of ``cycle`` from ``x`` (what every chord iteration runs)."""
+    return cycle_pass(cycle.arm, cycle.downstream, cycle.tables, cycle.period, x, record=True)
+
+
 @jax.custom_jvp
 def _replayed(cycle: Cycle, x: Array, run: PassResult) -> PassResult:
     """``run``, the recorded pass of ``cycle`` from ``x``, computed already: its value is
@@ -132,11 +134,7 @@ def _replayed(cycle: Cycle, x: Array, run: PassResult) -> PassResult:
 def _replayed_jvp(primals, tangents):
     cycle, x, run = primals
     d_cycle, d_x, _ = tangents
-
-    def replay(c, xx):
-        return cycle_pass(c.arm, c.downstream, c.tables, c.period, xx, record=True)
-
-    _, d_run = jax.jvp(replay, (cycle, x), (d_cycle, d_x))
+    _, d_run = jax.jvp(_recorded_pass, (cycle, x), (d_cycle, d_x))
     return run, d_run
 
 
@@ -151,7 +149,7 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
     corrected state, is the recorded steady cycle. Every pass is the same recording pass, so
     the compiled program holds it once; the recorded cycle is differentiable through
     :func:`_replayed` and the implicit-function derivative of the periodic state
-    (:func:`jaxdobby.steady_state.periodic_state`'s ``custom_root``).
+    (:func:`jaxdobby.steady_state.attach_root_derivative`).
 
     Args:
         model: the coupled model (two-way coupling).
@@ -176,9 +174,6 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
     out_tables, out_rigid = (jax.tree.map(lambda a: a[3 * steps:], x) for x in (every, rigid))
     cycle = Cycle(arm, ds, tables, period)
 
-    def recorded(c, x):
-        return cycle_pass(c.arm, c.downstream, c.tables, c.period, x, record=True)
-
     def iterate(c):
         lin = linearise(c.arm, c.downstream, c.tables, c.period)
         chord = jnp.linalg.inv(jnp.eye(lin.monodromy.shape[0]) - lin.monodromy)
@@ -186,7 +181,7 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
         inf = jnp.asarray(jnp.inf, x.dtype)
 
         def step(it):
-            run = recorded(c, it.x)
+            run = _recorded_pass(c, it.x)
             return _Chord(it.passes + 1, it.x + chord @ (run.end - it.x),
                           relative_residual(it.x, run.end), it.residual, it.x, run)
 
@@ -196,12 +191,12 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
 
         # no pass before the loop (it would be a second copy in the program): a blank one
         blank = jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype),
-                             jax.eval_shape(recorded, c, x))
+                             jax.eval_shape(_recorded_pass, c, x))
         return jax.lax.while_loop(keep_going, step, _Chord(jnp.asarray(0), x, inf, inf, x, blank))
 
     it = jax.lax.stop_gradient(iterate(cycle))
     converged_residual = jnp.where(it.previous > tolerance, it.residual, it.previous)
-    state = attach_root_derivative(lambda x: recorded(cycle, x).end, it.start)
+    state = attach_root_derivative(lambda x: _recorded_pass(cycle, x).end, it.start)
     shooting = ShootingResult(state=state, residual=converged_residual, iterations=it.passes,
                               converged=converged_residual <= tolerance)
     run = _replayed(cycle, state, it.run)
