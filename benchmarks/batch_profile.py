@@ -2,16 +2,16 @@
 
 Times, jitted over ``jax.vmap`` of one chunk of rows of the default Sobol design (one CPU
 device, compile time apart, best of ``--repeats``), per sample, each part including the ones
-before it, as :func:`jaxdobby.batch.steady_state_metrics` runs them:
+before it, as :func:`jaxdobby.periodic.steady_state_metrics` runs them:
 
 * ``prepare``: the model of each sample (finite elements, modal reduction, tables), one sample
-  at a time (:func:`jaxdobby.batch.steady.prepare` under ``sequential_vmap``);
+  at a time (:func:`jaxdobby.periodic.steady.prepare` under ``sequential_vmap``);
 * ``+ linearise``: the frozen Newton matrices, monodromy matrix and linear periodic response
-  of every lane (:func:`jaxdobby.batch.linear.linearise_lanes`, as the batch runs it);
+  of every lane (:func:`jaxdobby.periodic.linear.linearise_lanes`, as the batch runs it);
 * ``+ one cycle``: one cycle of every lane with the extremes, reading the lanes' tables where
   they are (as the batch's full cycles do);
 * ``steady_state_metrics``: everything, for each number of lanes per round of the chord
-  iteration in ``--widths`` (:data:`jaxdobby.batch.steady.ROUND_WIDTH`).
+  iteration in ``--widths`` (:data:`jaxdobby.periodic.steady.ROUND_WIDTH`).
 
 It also reports how many cycles the lanes needed: a vmapped while loop would integrate
 (chunk × the slowest lane's cycles), the rounds about the sum of the lanes' own.
@@ -59,9 +59,9 @@ def main(argv=None) -> int:
     import jax.numpy as jnp
     from jax.custom_batching import sequential_vmap
 
-    from jaxdobby.batch import steady
-    from jaxdobby.batch.linear import linearise_lanes
-    from jaxdobby.batch.stepper import cycle_pass
+    from jaxdobby.periodic import steady
+    from jaxdobby.periodic.linear import linearise_lanes
+    from jaxdobby.periodic.stepper import cycle_pass
     from jaxdobby.parameters import Setup
     from jaxdobby.sensitivity import DOBBY, ParameterSpace
     from jaxdobby.sensitivity.batch import compile_for

@@ -3,7 +3,7 @@
 The samples are a scrambled Sobol sequence (seed 0) over the default box of the sensitivity
 study (speed 400–1200 r/min, warp force 345–1035 N, stroke 80–140 mm, arm thickness 6–8 mm).
 
-* jaxdobby: :func:`jaxdobby.batch.steady_state_metrics` (default ``steps``) of
+* jaxdobby: :func:`jaxdobby.periodic.steady_state_metrics` (default ``steps``) of
   ``jaxdobby.parameters.apply(Setup(), sample)``, under ``jax.vmap`` + ``jax.jit`` in chunks of
   fixed size (the last one padded) — the Sobol pipeline's compiled chunk function — each device
   count in a fresh process (``XLA_FLAGS=--xla_force_host_platform_device_count=K``; a chunk is
@@ -22,7 +22,7 @@ Two cores for jaxdobby: by default two host devices in one process
 ``shard_map``, the Sobol pipeline's way); ``--two processes`` runs two concurrent one-device
 processes instead, each with half of every batch. (Two host devices hung on this machine until
 the batch path built each sample's model sequentially: two batched LAPACK calls deadlocked
-jaxlib's 2-thread pool; see ``jaxdobby.batch.steady.prepare``.)
+jaxlib's 2-thread pool; see ``jaxdobby.periodic.steady.prepare``.)
 
 Accuracy, on the scipy subset: the batch metrics and the scipy metrics against a tight reference
 (DOP853, rtol 1e-10, jitted right-hand side) on the same samples.
@@ -77,7 +77,7 @@ def jax_worker(sizes: list[int], chunk: int, repeats: int, modes: int, keep: int
 
     The per-chunk function is the Sobol pipeline's (:func:`jaxdobby.sensitivity.batch.
     chunk_function` of :func:`jaxdobby.sensitivity.dobby.dobby_model`: one row in users' units →
-    :func:`jaxdobby.batch.steady_state_metrics` of ``apply(Setup(), row)``, vmapped, split over
+    :func:`jaxdobby.periodic.steady_state_metrics` of ``apply(Setup(), row)``, vmapped, split over
     the devices with ``shard_map``), compiled once; this loop feeds it chunks as
     :func:`jaxdobby.sensitivity.batch.evaluate` does, without recompiling per call.
     With ``parts`` > 1 this process takes every ``parts``-th row from ``part`` on of each size
@@ -86,7 +86,7 @@ def jax_worker(sizes: list[int], chunk: int, repeats: int, modes: int, keep: int
     import numpy as np
 
     from jaxdobby import Machine
-    from jaxdobby.batch import DEFAULT_STEPS
+    from jaxdobby.periodic import DEFAULT_STEPS
     from jaxdobby.parameters import Setup
     from jaxdobby.sensitivity.batch import chunk_function
     from jaxdobby.sensitivity.dobby import DOBBY_PARAMETERS, METRIC_UNITS, dobby_model

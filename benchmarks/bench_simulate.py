@@ -84,7 +84,7 @@ def jax_runs(quick: bool, repeats: int, reference, numpy_model, machine) -> list
     from benchmarks.scipy_model import METRICS, metric_error
     from benchmarks.scipy_steady import metrics_on
     from jaxdobby import OperatingPoint
-    from jaxdobby.batch import DEFAULT_STEPS as COLLOCATION_STEPS
+    from jaxdobby.periodic import DEFAULT_STEPS as COLLOCATION_STEPS
     from jaxdobby.simulate import default_steps, simulate
 
     n = default_steps(machine, OperatingPoint())

@@ -37,7 +37,7 @@ _configure_jax()  # float64 and the persistent compilation cache, before anythin
 import jax
 
 from jaxdobby import OperatingPoint, simulate
-from jaxdobby.batch import DEFAULT_STEPS
+from jaxdobby.periodic import DEFAULT_STEPS
 from jaxdobby.optimize import Constraints, DesignSpace, Objective, Settings
 from jaxdobby.optimize.study import Study, run_study
 from jaxdobby.parameters import Setup

@@ -3,7 +3,7 @@
 Measures, on this machine, float64, compile time apart:
 
 * samples per second of :data:`jaxdobby.sensitivity.DOBBY` (steady-state metrics of the coupled
-  model, :func:`jaxdobby.batch.steady_state_metrics`) over rows of the default problem's Sobol
+  model, :func:`jaxdobby.periodic.steady_state_metrics`) over rows of the default problem's Sobol
   design, in chunks of ``--chunk`` rows: in 1 and in 2 concurrent processes of one CPU device
   each (each its share of the rows, timing started together after all have compiled), and in
   one process of 2 CPU devices (``shard_map``, what a plain ``jaxdobby sobol`` does on a 2-core
@@ -169,7 +169,7 @@ def accuracy() -> dict:
     import jax.numpy as jnp
 
     from jaxdobby import simulate
-    from jaxdobby.batch import METRICS, steady_state_metrics
+    from jaxdobby.periodic import METRICS, steady_state_metrics
     from jaxdobby.parameters import Setup, apply
 
     rpm = 3.141592653589793 / 30.0

@@ -65,7 +65,7 @@ from .units import DEG, MM
 _ORIGIN = np.zeros(2)  # the arm pivot B0 (numpy: importing must not start a JAX backend)
 
 
-def _rotate(angle, vector):
+def rotate(angle, vector):
     """A(angle)·vector: planar rotation, counter-clockwise positive.
 
     ``angle`` has shape ``(...)``, ``vector`` ``(..., 2)``; they broadcast over the leading axes.
@@ -257,7 +257,7 @@ def link11_joint_position(linkage: DobbyLinkage, arm_angle, s=None) -> Array:
     """
     theta = jnp.asarray(arm_angle, dtype=float)
     p = link11_joint_body(linkage, s)
-    return _rotate(theta, p)
+    return rotate(theta, p)
 
 
 def blade_angle(linkage: DobbyLinkage, joint_position) -> Array:

@@ -11,7 +11,7 @@ Three integrators solve the same equations:
 * ``method="collocation"`` (the default for the two-way coupled model): three-stage Gauss
   collocation (order 6, A-stable) on a phase-normalised grid of 432 steps per cycle, the rigid
   mechanism tabulated at the collocation nodes and the chain in closed form
-  (:mod:`jaxdobby.batch.dense`, the equations of the batch evaluator), outputs from the
+  (:mod:`jaxdobby.periodic.dense`, the equations of the batch evaluator), outputs from the
   collocation polynomial at four times per step — tens of milliseconds per run;
 * ``method="rk4"`` (the default for the one-way variant): fixed-step RK4 on a precomputed table
   of the rigid mechanism (:mod:`jaxdobby.fixed_step`), a step from the highest mode
@@ -42,8 +42,8 @@ import numpy as np
 from jax import Array
 
 from ._x64 import require_x64
-from .batch import DEFAULT_STEPS as COLLOCATION_STEPS
-from .batch.dense import steady_cycle
+from .periodic import DEFAULT_STEPS as COLLOCATION_STEPS
+from .periodic.dense import steady_cycle
 from .dobby import DobbyModel, build_model, rigid_state, vector_field
 from .errors import InputError
 from .fixed_step import rigid_table, rk4_cycle, steps_per_cycle

@@ -1,6 +1,6 @@
-"""The batched steady-state evaluator (jaxdobby.batch) against the model it claims to solve.
+"""The batched steady-state evaluator (jaxdobby.periodic) against the model it claims to solve.
 
-References nobody wrote into jaxdobby.batch: the coupled equations of jaxdobby.dobby (autodiff
+References nobody wrote into jaxdobby.periodic: the coupled equations of jaxdobby.dobby (autodiff
 through atan2/sin/cos where batch uses closed forms), the exact solution of a forced damped
 oscillator (for the Gauss method's order) and the adaptive diffrax solve of
 jaxdobby.simulate (for the metrics). The corners of the whole default Sobol box are a slow test.
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from jaxdobby import Machine, OperatingPoint, simulate
-from jaxdobby.batch import METRICS, steady_state_metrics
-from jaxdobby.batch import collocation as gl
-from jaxdobby.batch.chain import downstream
-from jaxdobby.batch.cycle import arm_terms, rigid_arm, tables_at
-from jaxdobby.batch.stepper import _residuals
+from jaxdobby.periodic import METRICS, steady_state_metrics
+from jaxdobby.periodic import collocation as gl
+from jaxdobby.periodic.chain import downstream
+from jaxdobby.periodic.cycle import arm_terms, rigid_arm, tables_at
+from jaxdobby.periodic.stepper import _residuals
 from jaxdobby.dobby import build_model, equations_at, rigid_state, vector_field
 from jaxdobby.parameters import Setup, apply
 from jaxdobby.steady_state import relative_residual
@@ -129,12 +129,12 @@ def test_stage_solver_solves_the_assembled_stage_system():
 
 
 def test_step_map_is_the_stagewise_tangent_step():
-    """jaxdobby.batch.linear.step_map (Ψ in closed form from the inverted Butcher blocks)
+    """jaxdobby.periodic.linear.step_map (Ψ in closed form from the inverted Butcher blocks)
     against tangent_step applied to the identity (the stage-by-stage solve, which the test
     above checks against numpy's assembled stage system), on that test's random k = 4 system
     with stiff modes (ωh up to ~20, as the arm's at 400 r/min). Two algebraic forms of one
     matrix: agreement to round-off, 1e-13 relative."""
-    from jaxdobby.batch.linear import step_map, tangent_step
+    from jaxdobby.periodic.linear import step_map, tangent_step
 
     k, h = 4, 0.15 / 432
     _, mass, damp, stiff = random_stage_system([4e5, 8e8, 1.3e9, 3.6e9])
@@ -146,16 +146,16 @@ def test_step_map_is_the_stagewise_tangent_step():
 
 def test_linearisation_is_close_to_the_exact_cycle_map():
     """The monodromy matrix of the equations linearised about the rigid motion
-    (jaxdobby.batch.linear) against the exact one of the discrete cycle map at the periodic
+    (jaxdobby.periodic.linear) against the exact one of the discrete cycle map at the periodic
     state: forward-mode derivatives through the integrated cycle's Newton iterations (another
     computation altogether). They differ by the frozen matrices (the middle node's for a whole
     step: O(h²) per step) and the linearisation point (the joint moves ~1 mm on ~0.4 m
     links): within 1e-2 relative at the default machine (measured 4.3e-3; 3.3e-2 at the
     1200 r/min, 1035 N, 140 mm, 6 mm corner): about what the chord iteration contracts by per
     cycle."""
-    from jaxdobby.batch.linear import linearise
-    from jaxdobby.batch.steady import prepare
-    from jaxdobby.batch.stepper import cycle_pass
+    from jaxdobby.periodic.linear import linearise
+    from jaxdobby.periodic.steady import prepare
+    from jaxdobby.periodic.stepper import cycle_pass
 
     def errors(setup):
         c = prepare(setup)
@@ -186,9 +186,9 @@ def test_two_newton_iterations_per_step_converge_the_cycle():
     peak-to-peak ranges of deviation, velocity deviation and acceleration within 1e-6 relative
     (measured ≤ 3.2e-7 at these three machines; one iteration leaves 1.5e-4), at the default
     speed and at the slow and fast ends of the Sobol box."""
-    from jaxdobby.batch.linear import linearise
-    from jaxdobby.batch.steady import prepare
-    from jaxdobby.batch.stepper import cycle_pass
+    from jaxdobby.periodic.linear import linearise
+    from jaxdobby.periodic.steady import prepare
+    from jaxdobby.periodic.stepper import cycle_pass
 
     def ranges(row):
         c = prepare(setup_at(row))
@@ -245,13 +245,13 @@ def test_vmap_equals_single_samples_and_failures_are_flagged():
 
 def test_batch_rounds_give_every_lane_its_own_cycles(monkeypatch):
     """The batched chord iteration integrates only pending lanes, ROUND_WIDTH of them per round
-    (jaxdobby.batch.steady._settle; 3 here, so that a round takes part of the 8 lanes): each
+    (jaxdobby.periodic.steady._settle; 3 here, so that a round takes part of the 8 lanes): each
     lane must get the cycle count, the flag and the metrics it gets alone (the per-sample while
     loop, run by lax.map, which does not batch). Eight random rows of the default box on a
     coarse grid (144 steps, cheap) need between 3 and 7 cycles, so lanes finish in different
     rounds and some hit max_passes; agreement to 1e-10 relative as for vmap above (measured
     6e-12: the lanes' arithmetic is the same, XLA's vectorisation of it differs)."""
-    from jaxdobby.batch import steady
+    from jaxdobby.periodic import steady
 
     monkeypatch.setattr(steady, "ROUND_WIDTH", 3)
     rng = np.random.default_rng(1)

@@ -124,7 +124,7 @@ def test_bench_simulate_quick(tmp_path):
 @pytest.mark.slow  # ~5 min on 2 busy cores with an empty cache: 3 processes compile the batch
 # path and 4 pool workers the model build; the scipy side needs ~10 s per sample even at 1 mode
 def test_bench_batch_quick(tmp_path):
-    pytest.importorskip("jaxdobby.batch")
+    pytest.importorskip("jaxdobby.periodic")
     _run("bench_batch.py", tmp_path)
     data = json.loads((tmp_path / "batch_quick.json").read_text())
     _common_keys(data)

@@ -1,10 +1,10 @@
-"""The collocation path's dense output (jaxdobby.batch.collocation.dense_weights, used by
+"""The collocation path's dense output (jaxdobby.periodic.collocation.dense_weights, used by
 simulate's default method) against closed-form integrals."""
 
 import numpy as np
 import pytest
 
-from jaxdobby.batch import collocation as gl
+from jaxdobby.periodic import collocation as gl
 
 THETA = np.linspace(0.0, 1.0, 9)
 
@@ -38,7 +38,7 @@ def test_dense_weights_at_the_nodes_and_the_step_end_are_the_methods():
 
 def test_collocation_outputs_equal_the_autodiff_kinematics():
     """The collocation path reports its time series from the chain in closed form
-    (jaxdobby.batch.dense.outputs_at); jaxdobby.outputs computes the same quantities from the
+    (jaxdobby.periodic.dense.outputs_at); jaxdobby.outputs computes the same quantities from the
     autodiff kinematics of jaxdobby.dobby (loop closures differentiated by jax.jvp, q̈ from
     equations_at). Two independent implementations of the same definitions at the same states
     (q, q̇) of the default run: equal to round-off, 1e-9 of each series' amplitude (closed-form

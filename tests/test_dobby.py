@@ -50,7 +50,7 @@ def test_default_run_is_a_periodic_steady_state(default_run):
 
 def test_three_integrators_agree_on_one_cycle(default_run):
     # From the periodic state, one cycle by (a) the default path, Gauss collocation at 432
-    # steps per cycle with its dense output (jaxdobby.batch), (b) diffrax Tsit5 adaptive at
+    # steps per cycle with its dense output (jaxdobby.periodic), (b) diffrax Tsit5 adaptive at
     # rtol 1e-10, (c) scipy DOP853 at rtol 1e-10 on the model's vector field (jaxdobby.dobby,
     # not the batch equations). Measured: the modal coordinates agree to 1.5e-7 of their
     # amplitude (the collocation polynomial between steps is O(h⁴)); tolerance 1e-6.

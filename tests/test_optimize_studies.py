@@ -23,7 +23,7 @@ from jaxdobby.parameters import Setup
 
 pytestmark = pytest.mark.slow
 RPM = math.pi / 30.0
-STEPS = 432  # collocation steps per cycle (the optimiser's default, jaxdobby.batch.DEFAULT_STEPS)
+STEPS = 432  # collocation steps per cycle (the optimiser's default, jaxdobby.periodic.DEFAULT_STEPS)
 
 
 def _vertex(x, i):

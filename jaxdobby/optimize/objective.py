@@ -42,7 +42,7 @@ import numpy as np
 from jax import Array
 from jax.scipy.special import logsumexp
 
-from ..batch import DEFAULT_STEPS
+from ..periodic import DEFAULT_STEPS
 from ..metrics import rms, smooth_peak_to_peak
 from ..simulate import _simulate
 from .design import DesignSpace
@@ -163,7 +163,7 @@ class Evaluator:
         space: the design space.
         objective: the objective settings.
         steps: collocation steps per cycle (default 432,
-            :data:`jaxdobby.batch.DEFAULT_STEPS`).
+            :data:`jaxdobby.periodic.DEFAULT_STEPS`).
         mode: gradient mode (``auto``, ``forward``, ``reverse``).
     """
 

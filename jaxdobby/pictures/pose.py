@@ -30,7 +30,7 @@ from ..arm import arm_beam
 from ..dobby import LINK, DobbyModel, arm_modes
 from ..kinematics import (
     DobbyLinkage,
-    _rotate,
+    rotate,
     arm_angle_from_crank,
     blade_angle,
     dead_centres,
@@ -107,9 +107,9 @@ def _pose(chain: DobbyLinkage, crank, theta, arm_body, ring_body, link_body) -> 
     crank = jnp.asarray(crank, dtype=float)
     q = chain.eccentric_axis + chain.eccentricity * jnp.stack([jnp.cos(crank), jnp.sin(crank)],
                                                               axis=-1)
-    arm = _rotate(theta[..., None], arm_body)
-    ring = _rotate(theta, ring_body)
-    link = _rotate(theta, link_body)
+    arm = rotate(theta[..., None], arm_body)
+    ring = rotate(theta, ring_body)
+    link = rotate(theta, link_body)
     c, e, h = _downstream(chain, link)
     shape = theta.shape + (2,)
     fixed = lambda p: np.broadcast_to(np.asarray(p), shape)  # noqa: E731

@@ -7,7 +7,7 @@ the source study's: speed 400–1200 r/min, peak warp force 345–1035 N, stroke
 plate thickness 6–8 mm (DESIGN.md §6). Parameters a problem does not vary keep the values of
 the base machine (the built-in default unless :func:`dobby_model` is given another).
 
-One sample row is evaluated by :func:`jaxdobby.batch.steady_state_metrics` (the two-way coupled
+One sample row is evaluated by :func:`jaxdobby.periodic.steady_state_metrics` (the two-way coupled
 equations, periodic steady state by collocation and chord shooting, extremes reduced inside the
 solve) and returns, in the users' units of ``jaxdobby simulate``'s summary:
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from ..batch import DEFAULT_STEPS, steady_state_metrics
+from ..periodic import DEFAULT_STEPS, steady_state_metrics
 from ..parameters import PARAMETERS, Setup, apply
 from ..stroke import arc_length_for_stroke, stroke_range
 from .models import ModelSpec
@@ -57,7 +57,7 @@ def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
 
     Args:
         base: the machine and operating point the samples start from (default: built-in).
-        steps: collocation steps per cycle (:func:`jaxdobby.batch.steady_state_metrics`).
+        steps: collocation steps per cycle (:func:`jaxdobby.periodic.steady_state_metrics`).
         tolerance: relative periodicity residual of the steady state.
     """
     def build(space: ParameterSpace):

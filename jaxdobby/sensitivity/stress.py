@@ -15,7 +15,7 @@ of intermediate arrays per row: ``--chunk-size 128`` keeps a chunk under 0.2 GB)
 
 from __future__ import annotations
 
-from ..batch import DEFAULT_STEPS
+from ..periodic import DEFAULT_STEPS
 from ..parameters import Setup
 from .dobby import DEFAULT_PROBLEM, DOBBY_PARAMETERS, check_strokes, setup_of_row
 from .models import ModelSpec

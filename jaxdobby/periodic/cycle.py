@@ -17,7 +17,7 @@ with coefficients that are combinations of constant modal matrices (:func:`arm_t
 
 (:func:`jaxdobby.floating_frame.kane_terms` with the ring link's correction of
 :mod:`jaxdobby.dobby`), a = Aᵀ(0, −g) the gravity field in the body frame and f the preload of
-link 11 from rigid inverse dynamics (:func:`jaxdobby.batch.chain.chain_terms` at q = 0). K(τ) and
+link 11 from rigid inverse dynamics (:func:`jaxdobby.periodic.chain.chain_terms` at q = 0). K(τ) and
 f(τ) are tabulated at the collocation nodes τ = (n + cᵢ)/N by one contraction of a stack of
 matrices with their coefficients.
 """
@@ -127,7 +127,7 @@ class StageTables(eqx.Module):
     """One sample's cycle at the collocation nodes, leading axes (N, 3) (or any shape).
 
     Attributes:
-        frame: the arm frame (:class:`~jaxdobby.batch.chain.Frame`) in physical time.
+        frame: the arm frame (:class:`~jaxdobby.periodic.chain.Frame`) in physical time.
         stiffness: K(τ) (..., k, k). force: f(τ) (..., k) (see the module docstring).
         height, velocity, acceleration: rigid heald-frame height [m], velocity [m/s] and
             acceleration [m/s²].

@@ -110,7 +110,7 @@ def stored(tree, key):
     without these boundaries XLA's CPU backend fuses the chain's terms into each of their many
     small consumers and recomputes them per output element (fusions of ~300 instructions;
     measured: two passes of 256 samples 40 % slower than with the batched dots they replace).
-    With them the batch evaluator's :func:`~jaxdobby.batch.steady.steady_state_metrics` ran in
+    With them the batch evaluator's :func:`~jaxdobby.periodic.steady.steady_state_metrics` ran in
     7.2 ms per sample against 11.7 ms with batched dots (256 samples, one core). ``lax.optimization_barrier`` does not
     survive to the CPU backend's fusion passes, a conditional does.
     """

@@ -150,7 +150,7 @@ def chain_terms(ds: Downstream, frame: Frame, u: Array, u_rate: Array) -> ChainT
     ld0, ld1 = -beta_rate * b1 - pd0, beta_rate * b0 - pd1
     h_beta = (l0 * pdd0 + l1 * pdd1 + beta_rate**2 * (l0 * b0 + l1 * b1) - ld0**2 - ld1**2) / den
     grad_body = jnp.stack([c * l0 + s * l1, -s * l0 + c * l1]) / den
-    # Φ_Pᵀ ∇_P β, unrolled (no batched dot under vmap; see jaxdobby.batch.collocation.matmul)
+    # Φ_Pᵀ ∇_P β, unrolled (no batched dot under vmap; see jaxdobby.periodic.collocation.matmul)
     g = ds.rows[0] * grad_body[0] + ds.rows[1] * grad_body[1]
     co, so = ds.output[0], ds.output[1]
     e0, e1 = co * b0 - so * b1, so * b0 + co * b1

@@ -1,21 +1,21 @@
 """The periodic steady cycle of one machine by collocation, as time series.
 
 The fast path of :func:`jaxdobby.simulate.simulate` (``method="collocation"``): the equations of
-the batch evaluator (:mod:`jaxdobby.batch.cycle`, :mod:`jaxdobby.batch.stepper`: the two-way
+the batch evaluator (:mod:`jaxdobby.periodic.cycle`, :mod:`jaxdobby.periodic.stepper`: the two-way
 coupled model, three-stage Gauss collocation on a phase-normalised grid, the chain in closed
 form) with
 
 * the periodic state by chord shooting started from the periodic state of the equations
   linearised about the rigid motion, with their monodromy matrix as the chord matrix (as the
-  batch evaluator, :mod:`jaxdobby.batch.linear`), and the implicit-function derivative of
+  batch evaluator, :mod:`jaxdobby.periodic.linear`), and the implicit-function derivative of
   :func:`jaxdobby.steady_state.attach_root_derivative` (so gradients through a run follow
   dx₀/dp = (I − F_x)⁻¹ F_p, not the iterations);
-* the steady cycle as the collocation polynomial (:func:`jaxdobby.batch.collocation.dense_weights`)
+* the steady cycle as the collocation polynomial (:func:`jaxdobby.periodic.collocation.dense_weights`)
   sampled ``per_step`` times per step, uniformly in time, plus the end point t = T.
 
 The collocation solution is accurate to O(h⁴) between the step boundaries (the stage order) and
 O(h⁶) at them; with the default 432 steps per cycle its metrics agree with the adaptive reference
-to ~3e-5 (:mod:`jaxdobby.batch.steady`; the tests compare this path too).
+to ~3e-5 (:mod:`jaxdobby.periodic.steady`; the tests compare this path too).
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def outputs_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, st: StageTables, 
     """What a run reports at output times, from the state (q, q̇) there (each (n, k)) and the
     rigid motion's tables ``st`` and ``rigid`` at the same phases (leading axis n).
 
-    The chain in closed form (:func:`~jaxdobby.batch.chain.chain_terms`), q̈ from the
+    The chain in closed form (:func:`~jaxdobby.periodic.chain.chain_terms`), q̈ from the
     equations of motion at (q, q̇) — M(q) q̈ = f − C q̇ − K q + g φ, the residual of the
     passes — and the same definitions as :func:`jaxdobby.outputs.flexible_outputs` and
     :func:`~jaxdobby.outputs.rigid_outputs` (which use the autodiff kinematics of
@@ -144,7 +144,7 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
 
     The chord iteration x ← x + (I − Φ)⁻¹(F(x) − x) starts from the periodic state of the
     equations linearised about the rigid motion, with their monodromy matrix Φ
-    (:func:`~jaxdobby.batch.linear.linearise`, as the batch evaluator), and stops one pass
+    (:func:`~jaxdobby.periodic.linear.linearise`, as the batch evaluator), and stops one pass
     after the residual ‖F(x) − x‖/‖x‖ falls to ``tolerance``: that last pass, from the
     corrected state, is the recorded steady cycle. Every pass is the same recording pass, so
     the compiled program holds it once; the recorded cycle is differentiable through

@@ -1,27 +1,27 @@
 """One cycle of the coupled equations by Gauss collocation, with extremes reduced on the fly.
 
 A *pass* integrates one heald-frame cycle from a state x = (q, q̇) with the three-stage Gauss
-method of :mod:`jaxdobby.batch.collocation` on the tables of :mod:`jaxdobby.batch.cycle`
+method of :mod:`jaxdobby.periodic.collocation` on the tables of :mod:`jaxdobby.periodic.cycle`
 (``lax.scan`` over the N steps). Each step:
 
 1. predicts the stage accelerations by extrapolating the previous step's (a quadratic);
 2. runs two simplified-Newton iterations on the stage equations. The residual is the full
    nonlinear one of :func:`jaxdobby.dobby.equations_at` (the chain in closed form,
-   :func:`jaxdobby.batch.chain.chain_terms`). The matrix is either given, inverted once per
+   :func:`jaxdobby.periodic.chain.chain_terms`). The matrix is either given, inverted once per
    step before the pass (the equations linearised about the rigid motion,
-   :mod:`jaxdobby.batch.linear`: what the batch evaluator uses), or frozen at the middle node of
+   :mod:`jaxdobby.periodic.linear`: what the batch evaluator uses), or frozen at the middle node of
    the step's predicted stages: the chain's inertia μ g gᵀ there, K(τ), C(τ) — and, with
    ``full_jacobian``, the chain's stiffness and damping (forward-mode derivatives in the
    joint's two displacement and two velocity components). Two iterations (the default) leave
    a cycle's metrics within ~3e-7 of converged ones (``tests/test_batch.py``);
 3. optionally carries tangent vectors through the linear step map of that frozen matrix (the
-   monodromy matrix for the shooting of :mod:`jaxdobby.batch.dense`);
+   monodromy matrix for the shooting of :mod:`jaxdobby.periodic.dense`);
 4. optionally records the heald frame's displacement deviation, velocity deviation and
    acceleration at the three nodes and keeps running maxima and minima, each local extremum of
    the sampled series refined by the parabola through it and its two neighbours (the nodes are
    0.11…0.39 h apart), wrapping around the periodic cycle. No time series is stored;
 5. optionally (``record``) returns each step's start state and converged stage accelerations,
-   from which :func:`jaxdobby.batch.collocation.dense_weights` gives the solution at any time
+   from which :func:`jaxdobby.periodic.collocation.dense_weights` gives the solution at any time
    (the time series of :func:`jaxdobby.simulate.simulate`).
 """
 
@@ -104,14 +104,14 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
 
     Args:
         arm, ds: the model's Kane terms and chain.
-        tables: :class:`~jaxdobby.batch.cycle.StageTables` with leading axes (N, 3), or a
+        tables: :class:`~jaxdobby.periodic.cycle.StageTables` with leading axes (N, 3), or a
             function of the step index n returning step n's, leading axis (3,), with ``steps``
             = N (to read a lane's tables out of a batch's without copying them first).
         period: T [s].
         x0: initial state (q, q̇), (2k,).
         solvers: the steps' Newton matrices, inverted once beforehand
-            (:class:`~jaxdobby.batch.collocation.StageSolver` with leading axis N, from
-            :func:`jaxdobby.batch.linear.linearise`), or a function of the step index n
+            (:class:`~jaxdobby.periodic.collocation.StageSolver` with leading axis N, from
+            :func:`jaxdobby.periodic.linear.linearise`), or a function of the step index n
             returning step n's (with ``tables`` a function too); None: each step builds its own
             at the middle node of its predicted stages.
         tangents: (2k, m) tangent vectors to carry, or None.
@@ -129,7 +129,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
     else:
         table_at, n_steps, xs_tables = None, tables.height.shape[0], tables
     if solvers is not None and (tangents is not None or full_jacobian):
-        raise ValueError("stored solvers do not carry tangents (see jaxdobby.batch.linear)")
+        raise ValueError("stored solvers do not carry tangents (see jaxdobby.periodic.linear)")
     solver_at = solvers if callable(solvers) else None
     xs_solvers = None if callable(solvers) else solvers
     h = period / n_steps

@@ -1,9 +1,9 @@
 """The cycle's equations linearised about the rigid motion: stage solvers, monodromy matrix and
 the linear periodic response.
 
-The collocation passes of :mod:`jaxdobby.batch.stepper` solve each step's stage equations by
+The collocation passes of :mod:`jaxdobby.periodic.stepper` solve each step's stage equations by
 simplified Newton iterations with one matrix per step, and the periodic state of
-:mod:`jaxdobby.batch.steady` is found by chord iterations x ← x + (I − Φ)⁻¹(F(x) − x) with an
+:mod:`jaxdobby.periodic.steady` is found by chord iterations x ← x + (I − Φ)⁻¹(F(x) − x) with an
 approximation Φ of the monodromy matrix. Both only need matrices *close* to the exact Jacobians
 (the iterations converge to the same solution whatever matrices they use, only more or less
 fast), and the elastic state is small (the joint of link 11 moves by ~1 mm on links of
@@ -16,8 +16,8 @@ middle node τ = (n + ½)/N, at q = q̇ = q̈ = 0:
     M̄ = M_b + μ g gᵀ,   C̄ = C_b + 2ωG − ∂(g φ)/∂u̇ Φ_P,   K̄ = K(τ) − ∂(g φ)/∂u Φ_P
 
 (the chain's inertia, damping and stiffness through the joint's displacement u = Φ_P q,
-:func:`jaxdobby.batch.chain.chain_terms`; forward-mode derivatives). Their stage matrices
-I⊗M̄ + h a⊗C̄ + h² a²⊗K̄ are inverted once (:class:`~jaxdobby.batch.collocation.StageSolver`).
+:func:`jaxdobby.periodic.chain.chain_terms`; forward-mode derivatives). Their stage matrices
+I⊗M̄ + h a⊗C̄ + h² a²⊗K̄ are inverted once (:class:`~jaxdobby.periodic.collocation.StageSolver`).
 The same matrices define the linearised equations M̄ q̈ + C̄ q̇ + K̄ q = f + g φ (the forces
 at the rigid motion, at every node), whose collocation step is affine,
 x_{n+1} = Ψₙ xₙ + cₙ (:func:`step_map`). Carried through one cycle they give the monodromy
@@ -51,7 +51,7 @@ class Linearisation(eqx.Module):
 
     Attributes:
         solvers: the inverted stage matrices of the N steps
-            (:class:`~jaxdobby.batch.collocation.StageSolver`, leaves with leading axis N).
+            (:class:`~jaxdobby.periodic.collocation.StageSolver`, leaves with leading axis N).
         monodromy: Φ, (2k, 2k).
         rest_response: d, the end state of the linearised cycle started at x = 0, (2k,).
     """
@@ -63,7 +63,7 @@ class Linearisation(eqx.Module):
 
 def chain_jacobian(ds: Downstream, frame, u, u_rate, acc):
     """∂(g φ − μ g gᵀ a)/∂u and ∂/∂u̇ of the chain's generalised force at one instant, each
-    (k, 2) (forward-mode derivatives of :func:`~jaxdobby.batch.chain.chain_terms`)."""
+    (k, 2) (forward-mode derivatives of :func:`~jaxdobby.periodic.chain.chain_terms`)."""
     def force(uu, uud):
         ct = chain_terms(ds, frame, uu, uud)
         return ct.g * ct.phi - ct.mu * ct.g * gl.matmul(ct.g[None], acc)[0]
@@ -166,7 +166,7 @@ def rest_forces(arm: ArmTerms, ds: Downstream, st) -> Array:
 def _frozen_step(carry, mass, damp, stiff, forces, h, key):
     """One step of the linearised cycle: the stage solver of the frozen matrices, Φ ← Ψ Φ and
     d ← Ψ d + c. Every array has its matrix axes first and any batch axes last (the unrolled
-    products of :mod:`jaxdobby.batch.collocation` then run over contiguous lanes)."""
+    products of :mod:`jaxdobby.periodic.collocation` then run over contiguous lanes)."""
     phi, d = carry
     solver = gl.stored(gl.StageSolver(mass, damp, stiff, h), key)
     psi = gl.stored(step_map(solver, damp, stiff, h), key)

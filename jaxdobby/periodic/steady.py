@@ -5,7 +5,7 @@
 ``acceleration_amp`` [m/s²]: peak-to-peak ranges as in :func:`jaxdobby.metrics.cycle_metrics`),
 the relative periodicity residual, the number of cycles integrated and an ``ok`` flag, solving the
 equations of :mod:`jaxdobby.dobby` (two-way coupling) with the collocation passes of
-:mod:`jaxdobby.batch.stepper`. Every size is static — ``steps`` per cycle of phase-normalised
+:mod:`jaxdobby.periodic.stepper`. Every size is static — ``steps`` per cycle of phase-normalised
 time (the same for every sample whatever its speed) and at most ``max_passes`` cycles — and
 nothing raises at run time: a sample that does not converge, leaves the chain's workspace or
 produces a non-finite metric has ``ok = False``.
@@ -13,13 +13,13 @@ produces a non-finite metric has ``ok = False``.
 **Periodic state.** Shooting on the period map F with the chord iteration
 x ← x + (I − Φ)⁻¹(F(x) − x) (as :mod:`jaxdobby.steady_state`), where Φ, the steps' Newton
 matrices and the first x are those of the equations linearised about the rigid motion
-(:mod:`jaxdobby.batch.linear`, built before any cycle is integrated): the first cycle starts
+(:mod:`jaxdobby.periodic.linear`, built before any cycle is integrated): the first cycle starts
 from the linearised equations' periodic state, each cycle records the metrics of its start
 state x, and the iteration stops when the residual ‖F(x) − x‖/‖x‖
 (:func:`jaxdobby.steady_state.relative_residual`) is below ``tolerance``; the metrics returned
 are those of that last cycle. Most samples of the default box need two cycles (residuals
 ~3e-3 from the linearised state, then ~3e-6, below 1e-5: the second cycle's metrics are
-returned; see :mod:`jaxdobby.batch.linear`), the others three or four (152, 97 and 7 of the
+returned; see :mod:`jaxdobby.periodic.linear`), the others three or four (152, 97 and 7 of the
 first 256 rows of the default design: ``benchmarks/batch_profile.py``). Under ``jax.vmap`` the
 cycles after the first :data:`FULL_CYCLES` run in rounds over the lanes still pending, so a
 batch does not integrate its slowest lane's cycle count for every lane (:func:`_solve`).
@@ -31,7 +31,7 @@ adaptive reference :func:`jaxdobby.simulate.simulate` (``method="adaptive"``, rt
 the 16 corners of the default Sobol box (400–1200 r/min, 345–1035 N, 80–140 mm, 6–8 mm; a slow
 test). Measured there (largest relative error over the corners and the five metrics): 576
 steps 2.2e-5, 432 steps 2.9e-5, 360 steps 8.3e-5, 288 steps 2.5e-4 (the velocity deviation's
-amplitude goes first); with the parabola-refined extremes of :mod:`jaxdobby.batch.stepper`, 432
+amplitude goes first); with the parabola-refined extremes of :mod:`jaxdobby.periodic.stepper`, 432
 steps: 2.3e-5 on the velocity deviation's amplitude, ≤ 2.1e-6 on the other four (2026-12-01,
 ``benchmarks/sobol_throughput.py``). The shooting tolerance costs little accuracy: the metrics
 are those of a start state within ~``tolerance`` of the periodic one, and on 256 random samples
@@ -186,7 +186,7 @@ def _solve(cycle: Cycle, *, tolerance: float, max_passes: int):
     ``lax.while_loop``. A batch (``jax.vmap``, through ``jax.custom_batching.custom_vmap``)
     does not:
 
-    * the linearisation runs with the lanes last (:func:`~jaxdobby.batch.linear.linearise_lanes`)
+    * the linearisation runs with the lanes last (:func:`~jaxdobby.periodic.linear.linearise_lanes`)
       and every pass reads step n of the tables where they are, (batch, N, 3, ...), by a slice
       (a scan over a batch's tables first copies them step-major, for every pass: half a
       pass's time);
