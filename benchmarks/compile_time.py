@@ -6,6 +6,9 @@ Two measurements, each in fresh processes (nothing shared but what is said):
   folder (``JAXDOBBY_CACHE_DIR`` a new temporary directory: no XLA executable, no stored
   program but the package's shipped one), then again with that folder filled; wall time of the
   whole process, median of ``--repeats`` fresh folders.
+* **The command line at other sizes**: ``jaxdobby simulate --modes k`` with an empty cache folder
+  (no shipped program at k ≠ 4: tracing, export and compilation with the one-shot XLA options
+  of ``jaxdobby.programs.ONE_SHOT``), whole process, for k in ``--cli-modes``.
 * **Compile time against modes** k = 1…30: in one fresh process per k (XLA's persistent cache
   off, the command line's XLA flags), the simulate program's tracing and lowering, XLA
   compilation, its size (StableHLO lines) and the warm run time (median of 3), with the
@@ -76,10 +79,29 @@ def _env(cache: str) -> dict:
     return env
 
 
+def _command() -> list[str]:
+    exe = Path(sys.executable).parent / "jaxdobby"
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "jaxdobby.cli"]
+
+
+def command_line_modes(modes) -> list[dict]:
+    """Wall time of ``jaxdobby simulate --modes k`` in a fresh process, empty cache folder."""
+    rows = []
+    for k in modes:
+        with tempfile.TemporaryDirectory() as cache:
+            t0 = time.perf_counter()
+            out = subprocess.run(_command() + ["simulate", "--json", "--modes", str(k)],
+                                 env=_env(cache), capture_output=True, text=True)
+            rows.append({"modes": k, "cold_s": time.perf_counter() - t0,
+                         "exit_code": out.returncode})
+        print(f"  jaxdobby simulate --modes {k}: cold {rows[-1]['cold_s']:.1f} s "
+              f"(exit {out.returncode})", flush=True)
+    return rows
+
+
 def command_line(repeats: int) -> dict:
     """Wall time of ``jaxdobby simulate`` cold (empty cache folder) and with it filled."""
-    exe = Path(sys.executable).parent / "jaxdobby"
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "jaxdobby.cli"]
+    cmd = _command()
     cold, cached = [], []
     for _ in range(repeats):
         with tempfile.TemporaryDirectory() as cache:
@@ -141,7 +163,10 @@ def markdown(result) -> str:
                   f"| cold: empty cache folder | {cl['cold_s']:.1f} s | "
                   + ", ".join(f"{t:.1f}" for t in cl["cold_all_s"]) + " |",
                   f"| cache filled (second run) | {cl['cached_s']:.1f} s | "
-                  + ", ".join(f"{t:.1f}" for t in cl["cached_all_s"]) + " |", ""]
+                  + ", ".join(f"{t:.1f}" for t in cl["cached_all_s"]) + " |"]
+        lines += [f"| `--modes {r['modes']}`, cold: empty cache folder | {r['cold_s']:.1f} s "
+                  f"| exit {r['exit_code']} |" for r in result.get("command_line_modes") or []]
+        lines += [""]
     lines += ["| modes k | tracing + lowering [s] | XLA compile [s] | StableHLO lines | warm run "
               "[ms] | per step [µs] |", "|---|---|---|---|---|---|"]
     for r in result["modes"]:
@@ -157,6 +182,8 @@ def main(argv=None) -> int:
     p.add_argument("--modes", type=int, nargs="+", default=None)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--no-command-line", action="store_true")
+    p.add_argument("--cli-modes", type=int, nargs="*", default=None,
+                   help="sizes of the cold `jaxdobby simulate --modes k` runs (default 16 30)")
     p.add_argument("--out", default=str(common.RESULTS))
     ns = p.parse_args(argv)
     modes = ns.modes or ((1, 4) if ns.quick else DEFAULT_MODES)
@@ -168,6 +195,8 @@ def main(argv=None) -> int:
         result["command_line"] = command_line(repeats)
         print(f"  cold {result['command_line']['cold_s']:.1f} s, cached "
               f"{result['command_line']['cached_s']:.1f} s", flush=True)
+        cli_modes = ns.cli_modes if ns.cli_modes is not None else (() if ns.quick else (16, 30))
+        result["command_line_modes"] = command_line_modes(cli_modes)
     print("compile time against modes ...", flush=True)
     result["modes"] = against_modes(modes)
     out = Path(ns.out)

@@ -22,9 +22,10 @@ from collections.abc import Sequence
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
-from ._arrays import as_float
+from ._arrays import as_float, is_traced
 
 
 def _chord(sigma, kappa, heading):
@@ -66,24 +67,22 @@ class CentreLine(eqx.Module):
 
         Lengths and radii in metres, turn angles in radians (signed, positive counter-clockwise).
         """
+        # NumPy for concrete values (no small XLA programs at start-up), jnp for traced ones
+        xp = jnp if is_traced(segments, start, start_angle) else np
         lengths, turns = [], []
         for seg in segments:
             kind = seg[0]
             if kind == "line":
-                lengths.append(jnp.asarray(seg[1], dtype=float))
-                turns.append(jnp.zeros((), dtype=float))
+                lengths.append(xp.asarray(seg[1], dtype=float))
+                turns.append(xp.zeros((), dtype=float))
             elif kind == "arc":
-                radius, turn = jnp.asarray(seg[1], dtype=float), jnp.asarray(seg[2], dtype=float)
-                lengths.append(radius * jnp.abs(turn))
+                radius, turn = xp.asarray(seg[1], dtype=float), xp.asarray(seg[2], dtype=float)
+                lengths.append(radius * xp.abs(turn))
                 turns.append(turn)
             else:
                 raise ValueError(f"unknown segment kind {kind!r}: use 'line' or 'arc'")
-        return cls(
-            lengths=jnp.stack(lengths),
-            turns=jnp.stack(turns),
-            start=jnp.asarray(start, dtype=float),
-            start_angle=jnp.asarray(start_angle, dtype=float),
-        )
+        return cls(lengths=xp.stack(lengths), turns=xp.stack(turns), start=start,
+                   start_angle=start_angle)
 
     @property
     def total_length(self) -> Array:

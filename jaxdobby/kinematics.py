@@ -136,13 +136,13 @@ class DobbyLinkage(eqx.Module):
             arm=CentreLine.from_segments(
                 [("line", arc_start), ("arc", 400.0 * MM, -arc_turn), ("line", 25.0 * MM)]
             ),
-            eccentric_axis=jnp.array([-192.5, 29.3]) * MM,
+            eccentric_axis=np.array([-192.5, 29.3]) * MM,
             eccentricity=30.0 * MM,
             ring_link_length=180.0 * MM,
             ring_joint_arc_length=80.0 * MM,
             link11_arc_length=arc_end,
             link11_length=400.0 * MM,
-            blade_pivot=jnp.array([363.6, 37.1]) * MM,
+            blade_pivot=np.array([363.6, 37.1]) * MM,
             blade_input_arm=160.0 * MM,
             blade_output_arm=152.0 * MM,
             blade_output_offset=-0.5 * math.pi,

@@ -77,6 +77,46 @@ class Timeseries(eqx.Module):
         return self.acceleration_flexible - self.acceleration_rigid
 
 
+class ArmMotion(eqx.Module):
+    """The arm's rigid motion and the modal accelerations at a run's saved times: what the
+    static correction of the arm's stress needs (:mod:`jaxdobby.stress.correction`).
+
+    Attributes (leading axis: the saved times, n):
+        cos, sin: cos θ and sin θ of the rigid arm angle θ [-].
+        rate: θ̇ [rad/s]. acceleration: θ̈ [rad/s²].
+        ring_direction: unit vector of the ring link 9 in the arm's body frame, (n, 2).
+        link_force: link 11's force on the arm in the rigid mechanism (inverse dynamics,
+            the geometric stiffening's preload), body frame [N], (n, 2).
+        modal_acceleration: q̈ from the equations of motion at the saved state, (n, k).
+    """
+
+    cos: Array
+    sin: Array
+    rate: Array
+    acceleration: Array
+    ring_direction: Array
+    link_force: Array
+    modal_acceleration: Array
+
+
+def arm_motion(model: DobbyModel, series: Timeseries) -> ArmMotion:
+    """:class:`ArmMotion` at the times of ``series`` by the autodiff kinematics of
+    :mod:`jaxdobby.dobby` (:func:`~jaxdobby.dobby.rigid_state`,
+    :func:`~jaxdobby.dobby.equations_at`); the collocation path computes the same from its
+    closed-form tables (:func:`jaxdobby.periodic.dense.outputs_at`)."""
+
+    def one(t, q, qdot):
+        rigid = rigid_state(model, t)
+        mass, force = equations_at(model, rigid, q, qdot)
+        f = rigid.frame
+        return ArmMotion(cos=jnp.cos(f.angle), sin=jnp.sin(f.angle), rate=f.angular_velocity,
+                         acceleration=f.angular_acceleration,
+                         ring_direction=rigid.ring_direction, link_force=rigid.link_force,
+                         modal_acceleration=jnp.linalg.solve(mass, force))
+
+    return jax.vmap(one)(series.t, series.modal, series.modal_rate)
+
+
 def flexible_outputs(model: DobbyModel, rigid: RigidState, q, qdot) -> dict[str, Array]:
     """Flexible-mechanism outputs at one instant from the rigid state there and (q, q̇)."""
     t = rigid.time

@@ -79,8 +79,23 @@ def write_program(exported, path: Path) -> None:
     os.replace(tmp, path)
 
 
+ONE_SHOT = {"xla_backend_optimization_level": 0}
+"""XLA options of a program run once per process (``jaxdobby simulate``'s): LLVM's optimisation
+level 0 compiles the default configuration's program in about two thirds of the time (CPU
+seconds: 21 → 13.5, measured with ``benchmarks/compile_time.py``'s program) and runs it about
+three times slower (0.09 → 0.3 s), a good trade for a program that runs once. Results are the
+same to round-off."""
+
+
+def _run(exported, args, compiler_options):
+    if not compiler_options:
+        return exported.call(*args)
+    compiled = jax.jit(exported.call).lower(*args).compile(compiler_options=compiler_options)
+    return compiled(*args)
+
+
 def call_stored(name: str, fn: Callable, args: Sequence, *, static_key: str,
-                directory: Path | None):
+                directory: Path | None, compiler_options: dict | None = None):
     """``fn(*args)`` through its stored program (see the module docstring).
 
     Args:
@@ -92,19 +107,20 @@ def call_stored(name: str, fn: Callable, args: Sequence, *, static_key: str,
         static_key: a text that differs whenever what ``fn`` closes over differs.
         directory: where programs are stored and looked for (besides the shipped ones);
             None: do not store.
+        compiler_options: XLA options of the compilation (e.g. :data:`ONE_SHOT`); None: JAX's.
     """
     key = program_key(name, static_key, args)
     places = ([directory / key] if directory is not None else []) + [SHIPPED / key]
     for path in places:
         if path.exists() and (exported := _read(path)) is not None:
-            return exported.call(*args)
+            return _run(exported, args, compiler_options)
     exported = export_program(fn, args)
     if directory is not None:
         try:
             write_program(exported, directory / key)
         except OSError:  # a read-only cache only costs the next run the tracing
             pass
-    return exported.call(*args)
+    return _run(exported, args, compiler_options)
 
 
 def main() -> None:

@@ -34,7 +34,6 @@ Example::
 
 from __future__ import annotations
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -49,7 +48,7 @@ from .errors import InputError
 from .fixed_step import rigid_table, rk4_cycle, steps_per_cycle
 from .machine import Machine, OperatingPoint
 from .metrics import cycle_metrics
-from .outputs import Timeseries, coupled_frequencies, flexible_outputs, rigid_outputs
+from .outputs import ArmMotion, Timeseries, coupled_frequencies, flexible_outputs, rigid_outputs
 from .steady_state import ShootingResult, periodic_state, relative_residual
 from .validity import validity_arrays, warnings_of
 from .weave.metrics import pick_metrics
@@ -71,6 +70,9 @@ class Simulation(eqx.Module):
         num_steps: integration steps of the saved cycle.
         pick_metrics: with a lift plan, the per-pick metrics of the repeat
             (:func:`jaxdobby.weave.metrics.pick_metrics`) and ``lift_plan``; else empty.
+        arm_motion: the arm's rigid motion and q̈ at the saved times
+            (:class:`~jaxdobby.outputs.ArmMotion`) where the integrator has them at no cost
+            (collocation); None otherwise (the stress recovery then computes them).
     """
 
     model: DobbyModel
@@ -82,6 +84,7 @@ class Simulation(eqx.Module):
     converged: Array
     num_steps: Array
     pick_metrics: dict = eqx.field(default_factory=dict)
+    arm_motion: ArmMotion | None = None
 
 
 def default_method(machine: Machine) -> str:
@@ -182,6 +185,8 @@ def check_lift_plan(lift_plan, machine: Machine):
 
 
 def _adaptive(model, x0, saveat, rtol, atol, adjoint):
+    import diffrax  # the adaptive reference only: importing diffrax costs a run ~0.4 s
+
     k = model.n_modes
     return diffrax.diffeqsolve(
         diffrax.ODETerm(vector_field), diffrax.Tsit5(), t0=0.0, t1=model.period, dt0=None,
@@ -200,6 +205,7 @@ def _simulate_impl(machine, operating, basis, lift_plan=None, *, method, steps, 
     model = build_model(machine, operating, basis, lift_plan)
     k = model.n_modes
     x_rest = jnp.zeros(2 * k)
+    motion = None
     if method == "rk4":
         table = rigid_table(model, steps)
         # The period map saves the outputs too (discarded here): the same compiled scan then
@@ -218,9 +224,12 @@ def _simulate_impl(machine, operating, basis, lift_plan=None, *, method, steps, 
         dense = steady_cycle(model, steps, tolerance=tolerance)
         shooting, x0, end, ts = dense.shooting, dense.shooting.state, dense.end, dense.time
         flexible = dense.outputs  # the rigid motion's outputs included
+        motion = dense.motion
         solved = dense.reachable & jnp.all(jnp.isfinite(end))
         num_steps = jnp.asarray(steps)
     else:
+        import diffrax
+
         def period_map(x):
             sol = _adaptive(model, x, diffrax.SaveAt(t1=True), rtol, atol, diffrax.ForwardMode())
             return jnp.concatenate([sol.ys[0][-1], sol.ys[1][-1]])
@@ -251,7 +260,7 @@ def _simulate_impl(machine, operating, basis, lift_plan=None, *, method, steps, 
         natural_frequencies=coupled_frequencies(model), shooting=shooting,
         periodicity=periodicity,
         converged=shooting.converged & (periodicity <= tolerance) & solved,
-        num_steps=num_steps,
+        num_steps=num_steps, arm_motion=motion,
     )
 
 
@@ -363,11 +372,12 @@ def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, 
         options: :class:`~jaxdobby.config.RunOptions` (method, steps).
         directory: where to store and look for programs; None: only the shipped ones.
     """
-    from .programs import call_stored
+    from .programs import ONE_SHOT, call_stored
     from .stress.cycle import stress_of_arrays
 
     name, fn, args, static_key = report_program(setup, options)
-    arrays = call_stored(name, fn, args, static_key=static_key, directory=directory)
+    arrays = jax.device_get(call_stored(name, fn, args, static_key=static_key,
+                                        directory=directory, compiler_options=ONE_SHOT))
     series = Timeseries(**{k.removeprefix("series."): v for k, v in arrays.items()
                            if k.startswith("series.")})
     return summary_of(arrays, setup.machine), series, stress_of_arrays(arrays)

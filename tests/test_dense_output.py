@@ -42,12 +42,15 @@ def test_collocation_outputs_equal_the_autodiff_kinematics():
     autodiff kinematics of jaxdobby.dobby (loop closures differentiated by jax.jvp, q̈ from
     equations_at). Two independent implementations of the same definitions at the same states
     (q, q̇) of the default run: equal to round-off, 1e-9 of each series' amplitude (closed-form
-    derivatives against nested forward-mode ones; measured ≤ 3e-11)."""
+    derivatives against nested forward-mode ones; measured ≤ 3e-11). The same for the arm's
+    motion the stress correction reads (Simulation.arm_motion: the tables' frame, ring direction
+    and rigid link-11 force, q̈ of the closed-form equations) against
+    jaxdobby.outputs.arm_motion (rigid_state and equations_at; measured ≤ 1e-12)."""
     import jax
 
     from jaxdobby import simulate
     from jaxdobby.dobby import rigid_state
-    from jaxdobby.outputs import flexible_outputs, rigid_outputs
+    from jaxdobby.outputs import arm_motion, flexible_outputs, rigid_outputs
 
     run = simulate()
     model, series = run.model, run.series
@@ -63,3 +66,7 @@ def test_collocation_outputs_equal_the_autodiff_kinematics():
         got, ref = np.asarray(getattr(series, key)), np.asarray(value)
         scale = np.max(np.abs(ref))
         assert np.max(np.abs(got - ref)) <= 1e-9 * scale, key
+    want = jax.jit(arm_motion)(model, series)
+    for key in want.__dataclass_fields__:
+        got, ref = np.asarray(getattr(run.arm_motion, key)), np.asarray(getattr(want, key))
+        assert np.max(np.abs(got - ref)) <= 1e-9 * np.max(np.abs(ref)), key

@@ -30,7 +30,8 @@ def test_shipped_program_of_the_default_configuration_is_current(default_setup):
 def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):
     """stored_report (an exported program, stored, then read back by a second call with other
     float values) against simulate() and summary() run directly on the same inputs: the same
-    XLA program either way, so equal to round-off (1e-12 relative). A stale key (other
+    computation, compiled as one program or as several (and the stored one with XLA's
+    ONE_SHOT options), so equal to round-off (1e-12 relative; measured ≤ 2e-16). A stale key (other
     sources) must not find the stored file."""
     monkeypatch.setattr(programs, "SHIPPED", tmp_path / "shipped")  # none shipped
     first, _, _ = stored_report(default_setup, RunOptions(), directory=tmp_path)
@@ -42,7 +43,12 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
     run = simulate(slower.machine, slower.operating)
     want = summary(run)
     for key, value in want.items():
-        if isinstance(value, float):
+        if key == "periodicity_residual":
+            # ‖F(x) − x‖/‖x‖ ≈ 5e-11 is itself near round-off: F is 432 collocation steps, whose
+            # rounding (≈ 432 × 2.2e-16 ≈ 1e-13 of ‖x‖) differs between the two compilations
+            assert got[key] == pytest.approx(value, rel=0, abs=1e-13), key
+        elif isinstance(value, float) or (isinstance(value, list) and value
+                                         and all(isinstance(v, float) for v in value)):
             assert got[key] == pytest.approx(value, rel=1e-12, abs=1e-300), key
         elif key == "warnings":  # (code, message, value, limit): values to round-off
             assert [w["code"] for w in got[key]] == [w["code"] for w in value]

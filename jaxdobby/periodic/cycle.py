@@ -131,6 +131,7 @@ class StageTables(eqx.Module):
         stiffness: K(τ) (..., k, k). force: f(τ) (..., k) (see the module docstring).
         height, velocity, acceleration: rigid heald-frame height [m], velocity [m/s] and
             acceleration [m/s²].
+        link_force: link 11's force on the rigid arm, body frame [N], (..., 2).
     """
 
     frame: Frame
@@ -139,6 +140,7 @@ class StageTables(eqx.Module):
     height: Array
     velocity: Array
     acceleration: Array
+    link_force: Array
 
 
 def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTables:
@@ -163,7 +165,8 @@ def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTa
              + field @ arm.translation.T)
     return StageTables(frame=frame, stiffness=stiffness, force=force, height=ct.height,
                        velocity=ct.slope * ct.beta_rate,
-                       acceleration=ct.slope * ct.h_beta + ct.curvature * ct.beta_rate**2)
+                       acceleration=ct.slope * ct.h_beta + ct.curvature * ct.beta_rate**2,
+                       link_force=link)
 
 
 def node_phases(steps: int) -> Array:

@@ -29,6 +29,7 @@ import numpy as np
 from jax import Array
 
 from ..dobby import DobbyModel
+from ..outputs import ArmMotion
 from ..steady_state import ShootingResult, attach_root_derivative, relative_residual
 from .chain import Downstream, chain_reachable, chain_terms, downstream
 from .collocation import MATRIX2, NODES, dense_weights
@@ -53,6 +54,7 @@ class DenseCycle(eqx.Module):
         outputs: the heald frame's rigid and flexible motion, the link-11 joint's deviation
             and the link forces at ``time`` (:func:`outputs_at`; the keys of
             :class:`~jaxdobby.outputs.Timeseries`).
+        motion: the arm's rigid motion and q̈ at ``time`` (:class:`~jaxdobby.outputs.ArmMotion`).
     """
 
     time: Array
@@ -62,12 +64,15 @@ class DenseCycle(eqx.Module):
     end: Array
     reachable: Array
     outputs: dict
+    motion: ArmMotion
 
 
 def outputs_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, st: StageTables, q: Array,
-               qdot: Array) -> dict[str, Array]:
+               qdot: Array) -> tuple[dict[str, Array], ArmMotion]:
     """What a run reports at output times, from the state (q, q̇) there (each (n, k)) and the
-    rigid motion's tables ``st`` and ``rigid`` at the same phases (leading axis n).
+    rigid motion's tables ``st`` and ``rigid`` at the same phases (leading axis n): the keys of
+    :class:`~jaxdobby.outputs.Timeseries`, and the arm's motion with q̈
+    (:class:`~jaxdobby.outputs.ArmMotion`, what the stress correction needs).
 
     The chain in closed form (:func:`~jaxdobby.periodic.chain.chain_terms`), q̈ from the
     equations of motion at (q, q̇) — M(q) q̈ = f − C q̇ − K q + g φ, the residual of the
@@ -90,7 +95,10 @@ def outputs_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, st: StageTables, 
         return jnp.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], axis=1)
 
     link_body = flex.grad_body * (flex.phi - flex.mu * (beta_acc - flex.h_beta))[:, None]
-    return dict(
+    motion = ArmMotion(cos=c, sin=s, rate=omega, acceleration=st.frame.alpha,
+                       ring_direction=rigid.ring, link_force=st.link_force,
+                       modal_acceleration=qddot)
+    outputs = dict(
         heald_flexible=flex.height,
         velocity_flexible=flex.slope * flex.beta_rate,
         acceleration_flexible=flex.slope * beta_acc + flex.curvature * flex.beta_rate**2,
@@ -103,6 +111,7 @@ def outputs_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, st: StageTables, 
         velocity_rigid=st.velocity,
         acceleration_rigid=st.acceleration,
     )
+    return outputs, motion
 
 
 class _Chord(NamedTuple):
@@ -217,6 +226,7 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
         ds, frames, stage_q.reshape(-1, k) @ ds.rows.T)
     q_all = jnp.concatenate([qs, run.end[None, :k]])
     qdot_all = jnp.concatenate([vs, run.end[None, k:]])
+    outputs, motion = outputs_at(arm, ds, out_rigid, out_tables, q_all, qdot_all)
     return DenseCycle(time=jnp.concatenate([t, period[None]]), q=q_all, qdot=qdot_all,
                       shooting=shooting, end=run.end, reachable=jnp.all(reach),
-                      outputs=outputs_at(arm, ds, out_rigid, out_tables, q_all, qdot_all))
+                      outputs=outputs, motion=motion)

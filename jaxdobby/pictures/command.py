@@ -59,10 +59,9 @@ def simulate_pictures(ns: argparse.Namespace):
                              "ffmpeg or `pip install imageio-ffmpeg`); a .gif needs nothing")
 
     def write(machine, run) -> list[Path]:
-        from ..plots import plt
-
         paths = []
         if ns.out and not ns.no_figures:
+            from ..plots import plt  # matplotlib only when drawing (0.5–1 s to import)
             from .mechanism import mechanism_figure
 
             fig = mechanism_figure(machine, ns.loom_angle)

@@ -35,9 +35,9 @@ import numpy as np
 from jax import Array
 
 from ..arm import arm_beam, arm_supports
-from ..dobby import LINK, RING, DobbyModel, equations_at, rigid_state
-from ..floating_frame import rotation_matrix
+from ..dobby import DobbyModel
 from ..modal import modal_basis, mode_subspace
+from ..outputs import ArmMotion, arm_motion
 from ..supports import static_deflection, supported_stiffness
 from .recovery import StressOperator, stress_operator
 
@@ -130,48 +130,53 @@ def arm_stress(model: DobbyModel, basis=None, points_per_element: int = POINTS_P
                      ring_rows=ring_rows)
 
 
-def arm_loads(model: DobbyModel, stress: ArmStress, t, q, qdot, link_force) -> Array:
-    """The load vector g − MΦq̈ (n_dofs,) of the static correction at time t (module docstring).
+def arm_loads(model: DobbyModel, stress: ArmStress, motion: ArmMotion, q, qdot,
+              link_force) -> Array:
+    """The load vector g − MΦq̈ (n_dofs,) of the static correction at one saved time (module
+    docstring): pure linear algebra on the run's state and the arm's motion there.
 
     Args:
-        t: time [s]; q, qdot: modal state (k,); link_force: force of link 11 on the arm,
-            inertial components [N] (``Timeseries.link11_force``).
+        motion: the arm's rigid motion and q̈ at that time (one row of
+            :class:`~jaxdobby.outputs.ArmMotion`); q, qdot: modal state (k,); link_force:
+            force of link 11 on the arm, inertial components [N] (``Timeseries.link11_force``).
     """
-    rigid = rigid_state(model, t)
-    f = rigid.frame
-    omega, alpha = f.angular_velocity, f.angular_acceleration
-    a_t = rotation_matrix(f.angle).T
+    omega, alpha = motion.rate, motion.acceleration
+    c, s = motion.cos, motion.sin
+    a_t = jnp.stack([jnp.stack([c, s]), jnp.stack([-s, c])])  # A(θ)ᵀ
     field = a_t @ jnp.stack([0.0 * model.machine.gravity, -model.machine.gravity])
-    mass, force = equations_at(model, rigid, q, qdot)
-    qddot = jnp.linalg.solve(mass, force)
     phi = stress.shapes
     u, v = phi @ q, phi @ qdot
     coeff = jnp.stack([omega**2, -alpha, field[0], field[1]])
     loads = stress.rigid_loads @ coeff
     link_body = a_t @ link_force
-    n, n0 = rigid.ring_direction, model.ring_direction_ref
+    n, n0 = motion.ring_direction, model.ring_direction_ref
     u_ring = stress.ring_rows @ u
     ring = -model.machine.ring_link_stiffness * (n * (n @ u_ring) - n0 * (n0 @ u_ring))
     loads = loads + stress.link_rows.T @ link_body + stress.ring_rows.T @ ring
-    k_geo = jnp.einsum("c,cij->ij", jnp.concatenate([coeff, rigid.link_force]), stress.stiffening)
+    k_geo = jnp.einsum("c,cij->ij", jnp.concatenate([coeff, motion.link_force]),
+                       stress.stiffening)
     rotating = (omega**2 * stress.translational_mass @ u - alpha * stress.gyroscopic @ u
                 - k_geo @ u - 2.0 * omega * stress.gyroscopic @ v)
-    return loads + rotating - stress.mass @ (phi @ qddot)
+    return loads + rotating - stress.mass @ (phi @ motion.modal_acceleration)
 
 
 def cycle_stress(model: DobbyModel, series, stress: ArmStress | None = None, *,
-                 correction: bool = True) -> Array:
+                 correction: bool = True, motion: ArmMotion | None = None) -> Array:
     """Edge stresses [Pa] over the saved cycle, shape (n_t, n_elements, n_points, 2).
 
     Args:
         model: the run's model; series: its :class:`~jaxdobby.outputs.Timeseries`.
         stress: :func:`arm_stress` of the model (built here when not given).
         correction: mode acceleration (static correction, default) or plain mode displacement.
+        motion: the arm's motion at the saved times (:class:`~jaxdobby.outputs.ArmMotion`;
+            ``Simulation.arm_motion``); None: computed by the autodiff kinematics
+            (:func:`jaxdobby.outputs.arm_motion`).
     """
     stress = arm_stress(model) if stress is None else stress
     sigma = series.modal @ stress.modal.T
     if correction:
-        loads = jax.vmap(lambda t, q, qd, fl: arm_loads(model, stress, t, q, qd, fl))(
-            series.t, series.modal, series.modal_rate, series.link11_force)
+        motion = arm_motion(model, series) if motion is None else motion
+        loads = jax.vmap(lambda m, q, qd, fl: arm_loads(model, stress, m, q, qd, fl))(
+            motion, series.modal, series.modal_rate, series.link11_force)
         sigma = sigma + loads @ stress.residual.T
     return sigma.reshape(sigma.shape[:1] + stress.operator.shape + (2,))

@@ -14,6 +14,7 @@ them to the metrics the command line reports:
 ``fatigue_position``     arc length where it is smallest [m]; ``fatigue_edge`` its edge
 ``stress_max_smooth``    smooth surrogate of ``stress_max`` [Pa] (for gradients)
 ``fatigue_utilisation_smooth``  smooth surrogate of 1/n [-]
+``endurance_limit``      the endurance limit of the Goodman line, σ_e = k_a·k_b·σ_e′ [Pa]
 =======================  ========================================================================
 
 Extremes are those of the saved samples (four per collocation step: 1728 per cycle by default).
@@ -68,6 +69,7 @@ def stress_metrics(sigma: Array, arc_lengths: Array, arm) -> dict[str, Array]:
         fatigue_safety_factor=factor[j], fatigue_position=s[j], fatigue_edge=edge[j],
         stress_max_smooth=smooth_peak_stress(sigma),
         fatigue_utilisation_smooth=smooth_fatigue_utilisation(sigma, ultimate, endurance),
+        endurance_limit=endurance,
     )
 
 
@@ -81,7 +83,8 @@ def run_stress(run, correction: bool = True, basis=None) -> CycleStress:
     """
     model = run.model
     stress = arm_stress(model, basis)
-    sigma = cycle_stress(model, run.series, stress, correction=correction)
+    sigma = cycle_stress(model, run.series, stress, correction=correction,
+                         motion=run.arm_motion)
     arm = model.machine.arm
     metrics = stress_metrics(sigma, stress.operator.arc_lengths, arm)
     n_t = sigma.shape[0]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from .cycle import CycleStress, run_stress
-from .fatigue import endurance_limit
 from .recovery import EDGES
 
 MPA = 1e-6
@@ -43,7 +42,7 @@ def _summary(m: dict, arm) -> dict:
         "fatigue_safety_factor": m["fatigue_safety_factor"],
         "fatigue_position_mm": m["fatigue_position"] * MM,
         "fatigue_edge": EDGES[int(m["fatigue_edge"])],
-        "endurance_limit_mpa": float(endurance_limit(arm)) * MPA,
+        "endurance_limit_mpa": m["endurance_limit"] * MPA,
         "yield_strength_mpa": float(arm.yield_strength) * MPA,
     }
     warnings = []
