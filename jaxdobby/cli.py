@@ -68,14 +68,16 @@ def _simulate(ns: argparse.Namespace) -> int:
 
     def run():  # the animation needs the whole run (modes, shapes): solved again, in Python
         return simulate(setup.machine, setup.operating, method=options.method,
-                        steps=options.steps)
+                        steps=options.steps, lift_plan=getattr(options, "lift_plan", None))
 
     for path in pictures(setup.machine, run):  # the drawing (--out), the animation (--animate)
         _status(f"wrote {path}")
     if ns.json:
         print(dumps(result))
     else:
-        print("jaxdobby simulate: periodic steady state of one heald-frame cycle"
+        print("jaxdobby simulate: " + ("static equilibrium, the frame never moves"
+                                       if result.get("static") else
+                                       "periodic steady state of one heald-frame cycle")
               + (f" (lift plan {result['lift_plan']}, repeat of {result['picks']} picks)"
                  if "lift_plan" in result else "") + "\n")
         print(summary_table(result))

@@ -42,7 +42,7 @@ from jax import Array
 
 from ._x64 import require_x64
 from .periodic import DEFAULT_STEPS as COLLOCATION_STEPS
-from .periodic.dense import steady_cycle
+from .periodic.dense import PER_STEP, steady_cycle
 from .dobby import DobbyModel, build_model, rigid_state, vector_field
 from .errors import InputError
 from .fixed_step import rigid_table, rk4_cycle, steps_per_cycle
@@ -103,6 +103,8 @@ def resolve_method(machine: Machine, operating: OperatingPoint, method: str | No
     method = default_method(machine) if method is None else method
     if method not in METHODS:
         raise InputError(f"method = {method!r} is not valid: use one of {', '.join(METHODS)}")
+    if _never_moves(lift_plan):  # static: no integrator; the collocation path's output grid
+        return "static", COLLOCATION_STEPS * len(lift_plan) // 2 if steps is None else steps
     if method == "collocation":
         if machine.coupling != "two-way":
             raise InputError("method = 'collocation' solves the two-way coupled model: use rk4 "
@@ -112,6 +114,16 @@ def resolve_method(machine: Machine, operating: OperatingPoint, method: str | No
     if method == "rk4" and steps is None:
         steps = default_steps(machine, operating, basis, lift_plan)
     return method, steps
+
+
+def _never_moves(lift_plan) -> bool:
+    """True for a concrete lift plan that never moves (the static case,
+    :mod:`jaxdobby.weave.static`)."""
+    if lift_plan is None or isinstance(lift_plan, jax.core.Tracer):
+        return False
+    from .weave.plan import is_static
+
+    return is_static(np.asarray(lift_plan))
 
 
 def default_steps(machine: Machine, operating: OperatingPoint,
@@ -149,8 +161,10 @@ def simulate(machine: Machine | None = None, operating: OperatingPoint | None = 
             sequence or a float array (P,) (traced: vmappable over frames of equal P); None:
             plain weave (the closed form; "10" gives the same to round-off). The steady
             state, series and metrics then cover the repeat of P picks, and
-            ``pick_metrics`` holds the per-pick ones. A plan that never moves is static:
-            :class:`~jaxdobby.errors.InputError` (no dynamics to solve).
+            ``pick_metrics`` holds the per-pick ones. A concrete plan that never moves
+            ("1", "00"…) is static: answered without dynamics, whatever ``method``
+            (:mod:`jaxdobby.weave.static`: the equilibrium at the top or bottom of the stroke,
+            constant over the repeat).
     """
     require_x64()
     machine = Machine.default() if machine is None else machine
@@ -164,20 +178,17 @@ def simulate(machine: Machine | None = None, operating: OperatingPoint | None = 
 
 def check_lift_plan(lift_plan, machine: Machine):
     """The plan as :func:`simulate` takes it: None, or a float array (P,) (text and sequences
-    parsed by :func:`jaxdobby.weave.plan.parse_plan`); a concrete plan that never moves and a
-    plan with the ``opposing`` warp law raise :class:`~jaxdobby.errors.InputError`."""
+    parsed by :func:`jaxdobby.weave.plan.parse_plan`); a plan with the ``opposing`` warp law
+    raises :class:`~jaxdobby.errors.InputError`."""
     if lift_plan is None:
         return None
-    from .weave.plan import is_static, parse_plan, plan_text
+    from .weave.plan import parse_plan
 
     if isinstance(lift_plan, jax.core.Tracer):
         plan = lift_plan
     else:
         plan = jnp.asarray(parse_plan(lift_plan if isinstance(lift_plan, str)
                                       else np.asarray(lift_plan)))
-        if is_static(plan):
-            raise InputError(f"lift_plan = {plan_text(plan)!r} never moves: the frame is static "
-                             "(no dynamics); give a plan with both 0 and 1")
     if machine.warp_law != "restoring":
         raise InputError("lift_plan needs warp_law = 'restoring' (the 'opposing' law is defined "
                          "for plain weave only)")
@@ -220,6 +231,13 @@ def _simulate_impl(machine, operating, basis, lift_plan=None, *, method, steps, 
         ts = table.time[::2]
         solved = jnp.all(jnp.isfinite(states))
         num_steps = jnp.asarray(steps)
+    elif method == "static":  # a plan that never moves: the equilibrium, no dynamics
+        from .weave.static import static_cycle
+
+        shooting, flexible, ts = static_cycle(model, PER_STEP * steps + 1, tolerance)
+        x0 = end = shooting.state
+        solved = jnp.all(jnp.isfinite(x0))
+        num_steps = jnp.asarray(0)
     elif method == "collocation":
         dense = steady_cycle(model, steps, tolerance=tolerance)
         shooting, x0, end, ts = dense.shooting, dense.shooting.state, dense.end, dense.time
@@ -333,17 +351,19 @@ def summary_of(arrays: dict, machine: Machine) -> dict[str, float | list | bool]
 
 
 def _pick_summary(arrays: dict) -> dict:
-    """The lift plan's keys of the summary (none in plain weave): the plan, its picks, and per
-    pick whether the frame moves, the deviation at shed-open and the dwell vibration [mm]."""
+    """The lift plan's keys of the summary (none in plain weave): the plan, its picks, whether
+    it never moves (``static``: the equilibrium, :mod:`jaxdobby.weave.static`), and per pick
+    whether the frame moves, the deviation at shed-open and the dwell vibration [mm]."""
     if "pick.lift_plan" not in arrays:
         return {}
-    from .weave.plan import plan_text
+    from .weave.plan import is_static, plan_text
 
     mm = 1e3
     plan = np.asarray(arrays["pick.lift_plan"])
     return {
         "lift_plan": plan_text(plan),
         "picks": int(plan.shape[0]),
+        "static": bool(is_static(plan)),
         "moves": [bool(v > 0.5) for v in np.asarray(arrays["pick.moves"])],
         "shed_deviation_mm": [float(v) * mm for v in np.asarray(arrays["pick.shed_deviation"])],
         "dwell_vibration_pp_mm": [float(v) * mm

@@ -1,6 +1,6 @@
 """``jaxdobby loom``'s inputs: named weaves, WIF files (read by dtx-to-wif), strokes, and
 its one-line errors. Fast: nothing here solves dynamics (the CLI errors come before any
-compile); the whole frame set's run is in ``test_loom_slow.py``.
+compile); the whole frame set's run is in ``test_weave_slow.py``.
 
 References: the weaves' closed forms (a 2/2 twill's frame i is "1100" started i picks later;
 a 5-end satin raises each frame once in five picks and one frame per pick); the four WIF test
@@ -67,10 +67,12 @@ def test_clean_shed_strokes():
     (["loom", "--weave", "plain", "--strokes", "80"], "--strokes has 1 values for 8 frames"),
     (["loom"], "either a WIF file or --weave"),
     (["simulate", "--lift-plan", "10a1"], "other than 0 and 1"),
-    (["simulate", "--lift-plan", "1111"], "never moves"),
+    (["loom", "--weave", "plain", "--frames", "2", "--animate", "3"],
+     "--animate = 3 is outside the valid range (a frame 1…2)"),
     (["simulate", "--lift-plan", ""], "empty"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, words, capsys):
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"jaxdobby {args[0]}: error:") and words in err[-1]
+

@@ -150,6 +150,44 @@ def test_animation_gif_frames_and_size(default_run, tmp_path):
         animate(default_run, tmp_path / "bad.gif", n_frames=n, element_values=values[:, :3])
 
 
+def test_animation_follows_a_lift_plan(default_run, tmp_path):
+    """``jaxdobby loom --animate``'s drawing over a plan's repeat, cheaply: the default run's
+    model with the plan "1100" (build_model only stores the plan) and an undeformed arm. The
+    crank follows the plan, not plain weave: at x = P·t/T = 1.6 (pick 2, which does not move)
+    the drawn frame is at the top, at x = 0 and 3.2 (pick 4's dwell, its last pick's) at the
+    bottom — heights equal to the rigid mechanism's at its dead centres, ψ = 2π and 0 of
+    plain weave, to round-off (the same closed-form loop closures at the same crank angles);
+    moving (x = 0.8 rising, 2.4 falling) strictly between; the loom-angle axis spans the
+    repeat, 4·360°; the GIF has one image per requested frame."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    import jax.numpy as jnp
+
+    from jaxdobby.pictures.animation import animation_frames
+    from jaxdobby.weave.command import FRAMES_PER_PICK, animation_images
+
+    model = dataclasses.replace(default_run.model, lift_plan=jnp.array([1.0, 1.0, 0.0, 0.0]))
+    n_t = 4 * 864 + 1
+    t = np.linspace(0.0, float(model.period), n_t)
+    run = SimpleNamespace(model=model, series=SimpleNamespace(
+        t=t, modal=np.zeros((n_t, model.n_modes)), deviation=np.zeros(n_t)))
+    n = 5
+    psi, rigid, _, _, _, sampling = animation_frames(run, n, magnification=1.0)
+    np.testing.assert_allclose(psi, 4 * 360.0 * np.arange(n) / n, rtol=1e-12)
+    y = np.asarray(rigid.heald_frame)[:, 1]
+    machine = model.machine
+    bottom, top = np.asarray(rigid_pose(machine, crank_angle_at(machine, np.array(
+        [0.0, 2.0 * math.pi])), sampling).heald_frame)[:, 1]
+    np.testing.assert_allclose(y[[0, 2, 4]], [bottom, top, bottom], rtol=0, atol=1e-12)
+    assert bottom + 1e-3 < y[3] < top - 1e-3  # τ = 0.36 of pick 3's index: mid-fall
+    assert top - 1e-4 < y[1] < top - 1e-6  # τ = 0.92 of pick 1's index: the rise ending
+    path = animate(run, tmp_path / "plan.gif", n_frames=n, magnification=1.0)
+    with Image.open(path) as im:
+        assert im.n_frames == n and im.size == GIF_SIZE
+    assert animation_images(4) == 4 * FRAMES_PER_PICK and animation_images(100) == 360
+
+
 @pytest.mark.skipif(ffmpeg_binary() is None, reason="no ffmpeg binary (optional extra: video)")
 def test_animation_mp4_frames_and_size(default_run, tmp_path):
     imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")  # its reader decodes the file

@@ -66,9 +66,11 @@ def test_parse_plan_and_its_errors():
     assert np.array_equal(parse_plan("1100"), [1.0, 1.0, 0.0, 0.0])
     assert is_static(parse_plan("111")) and not is_static(parse_plan("10"))
     assert np.array_equal(shift(parse_plan("1100"), 1), [1.0, 0.0, 0.0, 1.0])
-    for bad, words in (("", "empty"), ("1021", "other than 0 and 1"), ("1", "one pick")):
+    for bad, words in (("", "empty"), ("1021", "other than 0 and 1")):
         with pytest.raises(InputError, match=words):
             parse_plan(bad)
+    # one pick, or no change: a frame that never moves, the static case
+    assert all(is_static(parse_plan(p)) for p in ("1", "0", "11", "000"))
 
 
 class _Series:

@@ -1,5 +1,8 @@
 """Animation of one steady heald-frame cycle: the flexible arm over the rigid mechanism's ghost.
 
+The cycle is the run's: two picks in plain weave, the repeat of P picks of a run with a lift
+plan (the crank follows the plan, :func:`~jaxdobby.pictures.pose.crank_angle_at`).
+
 Each frame draws, at loom angle ψ = speed·t, the rigid mechanism as a grey ghost and the
 mechanism with the arm deformed by the run's modal coordinates q(t) (``Simulation.series.modal``
 through the model's mode shapes, :func:`~jaxdobby.pictures.pose.flexible_pose`), the deformation
@@ -83,7 +86,7 @@ def animation_frames(run, n_frames: int = N_FRAMES, magnification: float | None 
     q = _periodic_interp(t, ts, run.series.modal)
     deviation = _periodic_interp(t, ts, run.series.deviation)
     psi = float(model.operating.speed) * t
-    crank = crank_angle_at(machine, psi)
+    crank = crank_angle_at(machine, psi, model.lift_plan)
     factors = [magnification]
     if magnification is None:
         u = np.einsum("nik,fk->fni", sampling.modal_rows, q)
@@ -125,7 +128,8 @@ def animate(run, path, *, n_frames: int = N_FRAMES, magnification: float | None 
     writer = _writer(path, fps)
     psi, rigid, flexible, mag, deviation, sampling = animation_frames(run, n_frames, magnification)
     series = run.series
-    cycle_angle = np.asarray(series.t) / float(run.model.period) * 720.0
+    span = 360.0 * run.model.picks  # loom angle of the cycle (the repeat of a lift plan) [deg]
+    cycle_angle = np.asarray(series.t) / float(run.model.period) * span
     fig, (ax, ax_dev) = plt.subplots(1, 2, figsize=FIGSIZE, dpi=DPI, layout="constrained",
                                      width_ratios=(3, 2))
     if element_values is not None:
@@ -141,9 +145,10 @@ def animate(run, path, *, n_frames: int = N_FRAMES, magnification: float | None 
     bent = [_frame(flexible, i) for i in range(n_frames)]
     ax_dev.plot(cycle_angle, np.asarray(series.deviation) * MM, color="C3", lw=1.0)
     ax_dev.axhline(0.0, color="k", lw=0.6)
-    ax_dev.set_xlim(0.0, 720.0)
-    ax_dev.set_xticks([0, 180, 360, 540, 720])
-    ax_dev.set_xlabel("loom angle [deg]  (0: bottom dwell)")
+    ax_dev.set_xlim(0.0, span)
+    ax_dev.set_xticks(np.arange(0.0, span + 1.0, 180.0 if span <= 720.0 else 360.0))
+    ax_dev.set_xlabel("loom angle [deg]  (0: bottom dwell)" if run.model.lift_plan is None
+                      else "loom angle [deg]  (0: the last pick's dwell)")
     ax_dev.set_ylabel("heald-frame deviation [mm]\n(flexible − rigid, true size)")
     ax_dev.grid(alpha=0.3)
     (marker,) = ax_dev.plot([], [], "o", color="C3", ms=6)
@@ -172,7 +177,7 @@ def animate(run, path, *, n_frames: int = N_FRAMES, magnification: float | None 
         zoom.set_xticks([])
         zoom.set_yticks([])
         zoom.set_title("the arm, enlarged", fontsize=7, pad=2)
-        marker.set_data([psi[i] % 720.0], [deviation[i] * MM])
+        marker.set_data([psi[i] % span], [deviation[i] * MM])
         return []
 
     anim = animation.FuncAnimation(fig, draw, frames=n_frames, blit=False)

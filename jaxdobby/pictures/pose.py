@@ -79,15 +79,17 @@ class ArmSampling(NamedTuple):
     node_arc_lengths: np.ndarray
 
 
-def crank_angle_at(machine: Machine, loom_angle) -> np.ndarray:
+def crank_angle_at(machine: Machine, loom_angle, plan=None) -> np.ndarray:
     """Eccentric angle φ [rad] at loom (main-shaft) angle ψ [rad] from the middle of the bottom
     dwell (the modulator's φ(t) with t = ψ/speed, as :func:`jaxdobby.dobby.crank_angle`; one
-    heald-frame cycle is ψ = 0…4π, the frame at the top at ψ = 2π)."""
+    heald-frame cycle is ψ = 0…4π, the frame at the top at ψ = 2π). With a lift ``plan``
+    (P,) of 0/1 (DESIGN.md §7): ψ = 0 is the middle of the last pick's dwell and the repeat
+    is ψ = 0…2πP."""
     chain = machine.chain
     (crank_start, _), _ = dead_centres(chain)
     return np.asarray(modulator_crank_angle(jnp.asarray(loom_angle, dtype=float), 1.0,
                                             dwell=chain.dwell, start_angle=crank_start,
-                                            law=chain.motion_law))
+                                            law=chain.motion_law, plan=plan))
 
 
 def _downstream(chain: DobbyLinkage, joint):

@@ -13,6 +13,9 @@ import numpy as np
 from ..errors import InputError
 
 DEFAULTS = dict(front_stroke=80.0, frame_pitch=12.0, fell_distance=250.0, frames=8)
+FRAMES_PER_PICK = 24
+"""Images per pick of ``--animate`` (at most :data:`MAX_IMAGES` over the repeat)."""
+MAX_IMAGES = 360
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -35,6 +38,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--strokes", type=float, nargs="+", metavar="MM",
                    help="every frame's stroke [mm] instead of the clean-shed rule")
     p.add_argument("--out", metavar="DIR", help="write frames.csv, loom.json and figures")
+    p.add_argument("--animate", type=int, metavar="FRAME",
+                   help="write an animation of frame FRAME's mechanism over the repeat "
+                        f"(loom_frame<FRAME>.gif in --out DIR or here; {FRAMES_PER_PICK} "
+                        "images per pick)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
@@ -108,6 +115,28 @@ def frames_csv(records: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def animation_images(picks: int) -> int:
+    """Images of ``--animate`` over a repeat of ``picks``: :data:`FRAMES_PER_PICK` per pick,
+    at most :data:`MAX_IMAGES`."""
+    return min(FRAMES_PER_PICK * picks, MAX_IMAGES)
+
+
+def _animate(ns, setup, plan: np.ndarray, strokes_mm: np.ndarray) -> Path:
+    """``--animate FRAME``: that frame solved alone (its plan and stroke) and its mechanism
+    drawn over the repeat by :func:`jaxdobby.pictures.animation.animate` (GIF, Pillow)."""
+    from ..pictures.animation import animate
+    from .loom import frame_run
+
+    i = ns.animate - 1
+    target = Path(ns.out or ".") / f"loom_frame{ns.animate}.gif"
+    print(f"animating frame {ns.animate} (solved again alone, for its mode shapes)...",
+          file=sys.stderr, flush=True)
+    run = frame_run(setup.machine, setup.operating, plan[:, i], strokes_mm[i] * 1e-3)
+    path = animate(run, target, n_frames=animation_images(plan.shape[0]))
+    print(f"wrote {path}", file=sys.stderr)
+    return path
+
+
 def run(ns: argparse.Namespace, setup_from_args) -> int:
     from ..io import write_json, write_text
     from .loom import run_frames
@@ -118,6 +147,9 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
     for i, h in enumerate(strokes):
         if not np.isfinite(h) or h <= 0:
             raise InputError(f"frame {i + 1}: stroke {h:g} mm must be > 0")
+    if ns.animate is not None and not 1 <= ns.animate <= plan.shape[1]:
+        raise InputError(f"--animate = {ns.animate} is outside the valid range (a frame "
+                         f"1…{plan.shape[1]})")
 
     def progress(done, total):
         print(f"  frames solved: {done}/{total}", file=sys.stderr, flush=True)
@@ -145,6 +177,8 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
             plt.close(fig)
         print(f"wrote loom.json, frames.csv, lift_plan.png, deviation.png to {out}",
               file=sys.stderr)
+    if ns.animate is not None:
+        _animate(ns, setup, plan, strokes)
     if ns.json:
         print(json.dumps(result, indent=2))
     else:

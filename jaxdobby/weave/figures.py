@@ -33,7 +33,7 @@ def lift_plan_figure(rows: list[dict], title: str = ""):
 
 
 def deviation_figure(rows: list[dict], title: str = ""):
-    """Every moving frame's heald-frame deviation [mm] over the repeat, time in picks."""
+    """Every frame's heald-frame deviation [mm] over the repeat, time in picks."""
     fig, ax = plt.subplots(figsize=(8.0, 4.5), layout="constrained")
     for r in rows:
         if r.get("deviation") is None:

@@ -10,9 +10,10 @@ L_i = L₁ + (i − 1)·pitch (similar triangles).
 
 :func:`run_frames` runs ``jax.vmap`` of :func:`jaxdobby.simulate.simulate` over (plan, joint
 position): one compiled program for the set, whatever the number of frames; a frame whose plan
-never moves is static — answered without dynamics (zero deviation and dwell vibration, rigid
-acceleration 0; its constant static deflection is not computed: deviation min/max None) and
-left out of the batch.
+never moves is static — left out of the batch and answered without dynamics by
+:func:`~jaxdobby.simulate.simulate` with its concrete plan (:mod:`jaxdobby.weave.static`: the
+equilibrium at the top or bottom of its stroke; its deviation is the constant static
+deflection there, its peak-to-peak, dwell vibration and acceleration zero).
 """
 
 from __future__ import annotations
@@ -50,12 +51,23 @@ def joint_positions(machine: Machine, strokes_m) -> np.ndarray:
     return np.array(out)
 
 
+def frame_run(machine: Machine, operating: OperatingPoint, plan, stroke_m):
+    """The :class:`~jaxdobby.simulate.Simulation` of one frame alone: its lift sequence (P,)
+    and its stroke [m] (for ``jaxdobby loom --animate``, which needs the whole run)."""
+    s = joint_positions(machine, [stroke_m])[0]
+    return simulate(machine.with_link11_arc_length(float(s)), operating,
+                    lift_plan=np.asarray(plan, dtype=float))
+
+
+def _row(run) -> dict:
+    return dict(run.metrics, **run.pick_metrics, converged=run.converged,
+                deviation=run.series.deviation, t=run.series.t)
+
+
 @eqx.filter_jit
 def _batch(machine, operating, plans, positions):
     def one(plan, s):
-        run = simulate(machine.with_link11_arc_length(s), operating, lift_plan=plan)
-        return dict(run.metrics, **run.pick_metrics, converged=run.converged,
-                    deviation=run.series.deviation, t=run.series.t)
+        return _row(simulate(machine.with_link11_arc_length(s), operating, lift_plan=plan))
 
     return jax.vmap(one)(plans, positions)
 
@@ -67,7 +79,7 @@ def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, st
 
     ``progress(done, total)`` is called after each chunk of :data:`CHUNK` frames."""
     plan = np.asarray(plan, dtype=float)
-    picks, frames = plan.shape
+    frames = plan.shape[1]
     positions = joint_positions(machine, strokes_m)
     moving = [i for i in range(frames) if np.any(moves(plan[:, i]))]
     rows: list[dict] = [dict() for _ in range(frames)]
@@ -82,11 +94,10 @@ def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, st
         if progress is not None:
             progress(min(start + CHUNK, len(moving)), len(moving))
     for i in range(frames):
+        if i not in moving:  # static: the concrete plan takes simulate's equilibrium path
+            run = simulate(machine.with_link11_arc_length(float(positions[i])), operating,
+                           lift_plan=plan[:, i])
+            rows[i] = jax.tree.map(np.asarray, _row(run))
         rows[i].update(frame=i + 1, stroke=float(np.asarray(strokes_m)[i]),
                        lift_plan=plan_text(plan[:, i]), static=i not in moving)
-        if i not in moving:
-            rows[i].update(deviation_pp=0.0, deviation_max=None, deviation_min=None,
-                           acceleration_amp=0.0, dwell_vibration=np.zeros(picks),
-                           dwell_vibration_max=0.0, shed_deviation=np.zeros(picks),
-                           moves=np.zeros(picks), converged=True, deviation=None)
     return rows

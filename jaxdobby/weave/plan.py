@@ -14,8 +14,9 @@ from ..errors import InputError
 def parse_plan(plan, *, field: str = "lift_plan") -> np.ndarray:
     """The lift sequence as a float array (P,) of 0/1 from text ("1100") or a sequence.
 
-    Raises :class:`~jaxdobby.errors.InputError` naming ``field`` for an empty plan, a plan of
-    one pick, or characters other than 0 and 1.
+    Raises :class:`~jaxdobby.errors.InputError` naming ``field`` for an empty plan or
+    characters other than 0 and 1. A plan of one pick ("1", "0") never moves: the static
+    case (:mod:`jaxdobby.weave.static`), like every plan without both 0 and 1.
     """
     if isinstance(plan, str):
         text = plan.strip()
@@ -30,9 +31,6 @@ def parse_plan(plan, *, field: str = "lift_plan") -> np.ndarray:
         values = np.asarray(plan, dtype=float).reshape(-1)
         if values.size == 0 or not np.all((values == 0.0) | (values == 1.0)):
             raise InputError(f"{field} must be a non-empty sequence of 0 and 1")
-    if values.size < 2:
-        raise InputError(f"{field} = {plan_text(values)!r} has one pick: a repeat has at least "
-                         "2 picks (a frame that never moves is static)")
     return values
 
 
