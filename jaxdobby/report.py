@@ -48,6 +48,8 @@ def summary_table(summary: dict) -> str:
         v = summary[key]
         if key == "natural_frequencies_hz":
             text = ", ".join(f"{f:.0f}" for f in v)
+        elif key == "converged" and summary.get("static"):  # a plan that never moves
+            label, text = "static equilibrium (the frame never moves)", "yes" if v else "NO"
         elif key == "converged":
             text = (f"{'yes' if v else 'NO'} (periodicity residual "
                     f"{summary['periodicity_residual']:.1e})")
