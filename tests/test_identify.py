@@ -116,6 +116,21 @@ def test_small_twin_experiment_recovers_the_parameters_within_their_errors(small
     _check_twin(small.meas, small.res)
 
 
+def test_small_twin_with_the_accelerometer_alone(small):
+    """One channel: no position offset to fit (its Jacobian column is zero; the inner step
+    must leave it, not fail); the same program as the two-channel fit."""
+    meas = synthetic(apply(small.setup, TRUE), **(TWIN | NOISE), seed=0, keys=KEYS, lanes=1,
+                     options=small.options, channels=("acceleration",))
+    res = identify(small.setup, meas, KEYS, starts=1, options=small.options)
+    assert res.converged and not res.warnings and res.position_offset is None
+    for key, name in zip(KEYS, TRUE):
+        # 3σ as the two-channel fit; without the position channel the errors grow (~40 %)
+        assert abs(res.estimates[key] - TRUE[name]) < 3 * res.standard_errors[key], key
+        assert res.standard_errors[key] < 0.03 * TRUE[name]
+    np.testing.assert_allclose(res.residual_rms["acceleration_m_s2"],
+                               NOISE["noise_acceleration"], rtol=0.1)
+
+
 @pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
 def test_twin_experiment_recovers_the_parameters_within_their_errors(full):
     _check_twin(full.meas, full.res)
