@@ -2,12 +2,21 @@
 unidentifiable pair, the interpolation, and bad input.
 
 A twin experiment makes a measured-like trace with the model itself (chosen parameters, white
-noise, an arbitrary time origin and position zero) and fits it from the default machine. Every
-test of this module shares one compiled program: the fit of (heald_frame_mass_kg,
-damping_ratio) with two starts (the twin traces go through it too, see
-:func:`jaxdobby.identify.twin.model_trace`). That program takes minutes to compile on two
-cores, so the tests that fit are marked slow (run them with ``-m slow``), as is the coverage
-study over repeated noise draws; the default suite keeps the interpolation and input checks.
+noise, an arbitrary time origin and position zero) and fits it from the default machine.
+
+Two sizes of the model share the work:
+
+* the default suite fits a small model (2 modes of the arm, 144 collocation steps per cycle,
+  one start: the fixture ``small``), whose steady-cycle program compiles in well under a
+  minute; its twin experiment and the exact Jacobian against finite differences are default
+  tests (the twin is made by the same small model, so the claims are those of the method);
+* the full-size model (4 modes, 432 steps, two starts: the fixture ``fitted``) takes minutes to
+  compile on two cores: its tests are marked slow (run them with ``-m slow``), as is the
+  coverage study over repeated noise draws.
+
+Every test of a size shares one compiled program: the fit of (heald_frame_mass_kg,
+damping_ratio) with that many starts (the twin traces go through it too, see
+:func:`jaxdobby.identify.twin.model_trace`).
 """
 
 import json
@@ -17,7 +26,7 @@ import numpy as np
 import pytest
 
 from jaxdobby.cli import main
-from jaxdobby.config import load, to_toml
+from jaxdobby.config import RunOptions, load, to_toml
 from jaxdobby.identify import identify, synthetic
 from jaxdobby.identify.measurement import Measurement, to_csv
 from jaxdobby.identify.model import MM, fourier, interpolate, parameterisation
@@ -34,20 +43,57 @@ laser displacement sensor."""
 TWIN = dict(phase=0.37, offset_mm=3.0, start_s=17.25, cycles=2.0, rate_hz=4000.0)
 
 
+SMALL_OPTIONS = RunOptions(steps=144)
+"""The small model of the default suite: 144 collocation steps per cycle (with 2 modes)."""
+
+
+def small_setup():
+    """The default machine with 2 modes of the arm kept (the small model)."""
+    import dataclasses
+
+    import equinox as eqx
+
+    setup = Setup()
+    return eqx.tree_at(lambda s: s.machine, setup, dataclasses.replace(setup.machine, n_modes=2))
+
+
 def twin(seed, **kw):
     true = apply(Setup(), TRUE)
     return synthetic(true, **(TWIN | NOISE | kw), seed=seed, keys=KEYS, lanes=LANES)
 
 
+class Fit:
+    """A twin experiment of one model size: the measurement, the fit, and how it was made."""
+
+    def __init__(self, setup, options, lanes, seed=0):
+        self.setup, self.options, self.lanes = setup, options, lanes
+        self.meas = synthetic(apply(setup, TRUE), **(TWIN | NOISE), seed=seed, keys=KEYS,
+                              lanes=lanes, options=options)
+        self.res = identify(setup, self.meas, KEYS, starts=lanes, options=options)
+
+    def trace(self, setup, phase):
+        """Model (acceleration, position) at the measured times through the shared program."""
+        return model_trace(setup, self.meas.time, phase, self.options, keys=KEYS,
+                           lanes=self.lanes)
+
+
 @pytest.fixture(scope="module")
-def fitted():
-    meas = twin(seed=0)
-    return meas, identify(Setup(), meas, KEYS, starts=LANES)
+def small():
+    return Fit(small_setup(), SMALL_OPTIONS, lanes=1)
 
 
-@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
-def test_twin_experiment_recovers_the_parameters_within_their_errors(fitted):
-    meas, res = fitted
+@pytest.fixture(scope="module")
+def full():
+    return Fit(Setup(), None, lanes=LANES)
+
+
+@pytest.fixture(scope="module")
+def fitted(full):
+    return full.meas, full.res
+
+
+def _check_twin(meas, res):
+    """The claims of a twin experiment (see the test below)."""
     assert res.converged and not res.warnings
     for key, name in zip(KEYS, TRUE):
         est, se = res.estimates[key], res.standard_errors[key]
@@ -66,7 +112,31 @@ def test_twin_experiment_recovers_the_parameters_within_their_errors(fitted):
                                rtol=0.1)
 
 
-def _fd_jacobian(res, meas, h=1e-5):
+def test_small_twin_experiment_recovers_the_parameters_within_their_errors(small):
+    _check_twin(small.meas, small.res)
+
+
+def test_small_twin_with_the_accelerometer_alone(small):
+    """One channel: no position offset to fit (its Jacobian column is zero; the inner step
+    must leave it, not fail); the same program as the two-channel fit."""
+    meas = synthetic(apply(small.setup, TRUE), **(TWIN | NOISE), seed=0, keys=KEYS, lanes=1,
+                     options=small.options, channels=("acceleration",))
+    res = identify(small.setup, meas, KEYS, starts=1, options=small.options)
+    assert res.converged and not res.warnings and res.position_offset is None
+    for key, name in zip(KEYS, TRUE):
+        # 3σ as the two-channel fit; without the position channel the errors grow (~40 %)
+        assert abs(res.estimates[key] - TRUE[name]) < 3 * res.standard_errors[key], key
+        assert res.standard_errors[key] < 0.03 * TRUE[name]
+    np.testing.assert_allclose(res.residual_rms["acceleration_m_s2"],
+                               NOISE["noise_acceleration"], rtol=0.1)
+
+
+@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
+def test_twin_experiment_recovers_the_parameters_within_their_errors(full):
+    _check_twin(full.meas, full.res)
+
+
+def _fd_jacobian(res, meas, h=1e-5, trace_of=None):
     """Columns dr/dz (central differences of the model through new steady states), dr/dφ and
     dr/db for the weighted residuals of ``res`` at its estimate."""
     n = meas.time.size
@@ -74,7 +144,7 @@ def _fd_jacobian(res, meas, h=1e-5):
     cols = []
 
     def trace(setup, phase):
-        acc, pos = model_trace(setup, meas.time, phase, keys=KEYS, lanes=LANES)
+        acc, pos = trace_of(setup, phase)
         return np.concatenate([acc * weights[0], (pos / MM) * weights[1]])
 
     for key, name in zip(KEYS, TRUE):
@@ -88,13 +158,12 @@ def _fd_jacobian(res, meas, h=1e-5):
     return np.stack(cols, axis=1)
 
 
-@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
-def test_jacobian_and_covariance_match_finite_differences(fitted):
-    meas, res = fitted
+def _check_jacobian(fit: Fit):
+    meas, res = fit.meas, fit.res
     n = meas.time.size
     size = res.jacobian.shape[0] // 2
     jac = np.concatenate([res.jacobian[:n], res.jacobian[size:size + n]])
-    fd = _fd_jacobian(res, meas)
+    fd = _fd_jacobian(res, meas, trace_of=fit.trace)
     # central differences with h = 1e-5 in ln θ: truncation ~h² ≈ 1e-10, the steady state's
     # periodicity tolerance 1e-9 over 2h: ~1e-4 of a column's scale at most
     for i in range(jac.shape[1]):
@@ -105,6 +174,15 @@ def test_jacobian_and_covariance_match_finite_differences(fitted):
     c_exact = covariance(jac, r, jac.shape[0])
     c_fd = covariance(fd, r, jac.shape[0])
     np.testing.assert_allclose(np.sqrt(np.diag(c_exact)), np.sqrt(np.diag(c_fd)), rtol=1e-3)
+
+
+def test_small_jacobian_and_covariance_match_finite_differences(small):
+    _check_jacobian(small)
+
+
+@pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
+def test_jacobian_and_covariance_match_finite_differences(full):
+    _check_jacobian(full)
 
 
 @pytest.mark.slow  # the shared twin fit: minutes to compile on 2 cores
@@ -266,4 +344,7 @@ def test_coverage_of_two_sigma_over_noise_draws():
         assert res.converged
         hits += [abs(res.estimates[k] - TRUE[n]) < 2 * res.standard_errors[k]
                  for k, n in zip(KEYS, TRUE)]
+        print(f"draw {seed}: " + " ".join(  # progress of a long run (pytest -s)
+            f"{k} {(res.estimates[k] - TRUE[n]) / res.standard_errors[k]:+.2f}σ"
+            for k, n in zip(KEYS, TRUE)), flush=True)
     assert 0.85 <= np.mean(hits) <= 1.0, np.mean(hits)

@@ -4,6 +4,8 @@
 * :mod:`~jaxdobby.identify.measurement` — the measured trace (CSV) and its checks;
 * :mod:`~jaxdobby.identify.model` — fitted parameters → the model at the measured times;
 * :mod:`~jaxdobby.identify.fit` — Levenberg–Marquardt from several starts (:func:`identify`);
+* :mod:`~jaxdobby.identify.inner` — each outer step's linearised problem (compressed residuals,
+  Gauss–Newton);
 * :mod:`~jaxdobby.identify.uncertainty` — standard errors, correlations, identifiability;
 * :mod:`~jaxdobby.identify.twin` — synthetic traces for twin experiments;
 * :mod:`~jaxdobby.identify.report` and :mod:`~jaxdobby.identify.command` — output and CLI.

@@ -11,7 +11,9 @@ split: every outer iteration solves the steady cycle and its exact derivative on
 grid for each start (:func:`~jaxdobby.identify.model.cycle_grids`, forward mode through the
 implicit-function derivative of the periodic state); the step is then the minimiser of the
 residuals with the grid linearised in z, nonlinear in φ and b, damped by μ‖δ‖² — solved by
-:class:`optimistix.LevenbergMarquardt` (cheap: interpolation only). A start accepts its step when
+Gauss–Newton with a step-length search (:func:`~jaxdobby.identify.inner.gauss_newton`; cheap: interpolation only, and on
+the residuals compressed from the m samples to the model's 2K Fourier coefficients by one QR
+factorisation of the interpolation matrix, :func:`~jaxdobby.identify.inner.compressed`). A start accepts its step when
 the true cost falls (μ/3), else it shortens it (μ·10) (Moré, "The Levenberg–Marquardt
 algorithm", 1978). At convergence the Jacobian of the linearised residuals at δ = 0 is the exact
 Jacobian of r in (z, φ, b).
@@ -34,23 +36,17 @@ C = s² (JᵀJ)⁻¹ with s² = ‖r‖²/(n − P); standard errors of θ follo
 from __future__ import annotations
 
 import dataclasses
-import math
 
-import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from ..config import RunOptions
 from ..parameters import Setup
+from .inner import Problem, full, inner, problem
 from .measurement import Measurement
-from .model import (MM, Parameterisation, cycle_grids, fourier, harmonics, parameterisation,
+from .model import (MM, Parameterisation, cycle_grids, fourier, parameterisation,
                     solver_settings)
 
-BUCKET = 1024
-"""Measured samples are padded (with zero weight) to a multiple of this, so that traces of
-similar length share one compiled program."""
 STEP_TOLERANCE = 1e-7
 """Converged: an accepted step below this in every z (a relative change of θ far below any
 standard error a trace can give) …"""
@@ -109,94 +105,6 @@ class Identified:
     sigma: tuple[float, float]
 
 
-class Problem(eqx.Module):
-    """The measured data, padded with zero weights to a multiple of :data:`BUCKET` samples
-    (arrays, so that new values do not recompile).
-
-    Attributes: ``phase`` t/T of each sample from the first [-], shape (m,); the measured
-    channels (acceleration [m/s²], position [mm]) and their weights 1/σ_c (0: absent or
-    padding), shape (2, m) each; ``cos``, ``sin`` of 2πk·phase, shape (m, K) (the harmonics of
-    the model's grid at the samples: a shift φ then only rotates the model's coefficients)."""
-
-    phase: jax.Array
-    measured: jax.Array
-    weight: jax.Array
-    cos: jax.Array
-    sin: jax.Array
-
-
-def _problem(meas: Measurement, period: float, sigma, n_coef: int) -> Problem:
-    n = meas.time.size
-    size = BUCKET * math.ceil(n / BUCKET)
-    measured = np.zeros((2, size))
-    weight = np.zeros((2, size))
-    for row, y in enumerate((meas.acceleration, None if meas.position is None
-                             else meas.position / MM)):
-        if y is not None:
-            measured[row, :n] = y
-            weight[row, :n] = 1.0 / sigma[row]
-    phase = np.zeros(size)
-    phase[:n] = (meas.time - meas.time[0]) / period
-    cos, sin = harmonics(jnp.asarray(phase), n_coef)
-    return Problem(jnp.asarray(phase), jnp.asarray(measured), jnp.asarray(weight), cos, sin)
-
-
-def _linear_residuals(v, coef, dcoef, z, damping, lower, upper, data: Problem):
-    """Weighted residuals of the model linearised in z, at v = (δ, φ, b): the grid moved by
-    its exact derivative times the step δ (clipped to the bounds), sampled at t/T + φ, the
-    position offset by b; then ``damping``·δ (the Levenberg–Marquardt term √μ D δ of the
-    outer step, D the column norms of J: Marquardt's scaling)."""
-    p = z.shape[0]
-    delta = jnp.clip(z + v[:p], lower, upper) - z
-    c = coef + dcoef @ delta  # (2, K)
-    # the shift φ rotates the coefficients: e^{2πik(φ_j + φ)} = e^{2πikφ_j} e^{2πikφ}
-    c = c * jnp.exp(2j * jnp.pi * jnp.arange(c.shape[-1]) * v[p])
-    model = c.real @ data.cos.T - c.imag @ data.sin.T  # (2, m)
-    model = model.at[1].add(v[p + 1])
-    r = (data.weight * (model - data.measured)).ravel()
-    return jnp.concatenate([r, damping * v[:p]])
-
-
-def _phase_scan(coef, data: Problem):
-    """(φ, b) from the weighted cross-correlation of model and data (module docstring) and
-    the difference of the measured and modelled mean positions [mm]."""
-    n_coef = coef.shape[-1]
-    n = 2 * (n_coef - 1)
-    k = jnp.arange(n_coef)
-    w2 = data.weight ** 2
-    mean = jnp.sum(w2 * data.measured, axis=1) / jnp.maximum(jnp.sum(w2, axis=1), 1e-300)
-    d = (w2 * (data.measured - mean[:, None])) @ (data.cos + 1j * data.sin)  # (2, K): Σ_j w_j² y_j e^{2πikφ_j}
-    # Σ_j w_j² m(t_j/T + φ) y_j = Re Σ_k c_k D_k e^{2πikφ}: for φ = i/n at once by one FFT
-    spectrum = jnp.zeros(n, complex).at[k].set(jnp.sum(coef.at[:, 0].set(0.0) * d, axis=0))
-    score = jnp.real(jnp.fft.ifft(spectrum)) * n
-    return jnp.argmax(score) / n, mean[1] - coef[1, 0].real
-
-
-@eqx.filter_jit
-def _inner(coef, dcoef, z, mu, lower, upper, v0, scan, data: Problem, max_steps=64):
-    """For each lane (vmapped): the cost ½‖r‖² at v0 (true cost: δ = 0 there), then the
-    damped linearised step v = (δ, φ, b) by :class:`optimistix.LevenbergMarquardt` from v0 (φ, b
-    from :func:`_phase_scan` where ``scan``), its success, and the Jacobian of r at v0."""
-    solver = optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)
-
-    def one(coef, dcoef, z, mu, v0):
-        p = z.shape[0]
-
-        def fn(v, damping):
-            return _linear_residuals(v, coef, dcoef, z, damping, lower, upper, data)
-
-        zero = jnp.zeros(p)
-        r0 = fn(v0, zero)[:-p]
-        jac = jax.jacfwd(lambda v: fn(v, zero))(v0)[:-p]
-        damping = jnp.sqrt(mu) * jnp.linalg.norm(jac[:, :p], axis=0)
-        phase, offset = _phase_scan(coef, data)
-        start = jnp.where(scan, v0.at[p].set(phase).at[p + 1].set(offset), v0)
-        sol = optx.least_squares(fn, solver, start, damping, max_steps=max_steps, throw=False)
-        return 0.5 * r0 @ r0, sol.value, sol.result == optx.RESULTS.successful, r0, jac
-
-    return jax.vmap(one)(coef, dcoef, z, mu, v0)
-
-
 def _starts(par: Parameterisation, starts: int, spread: float, seed: int) -> np.ndarray:
     """Starting z: the configuration's values (0), then ``starts − 1`` draws uniform in
     ±``spread``, clipped to the bounds."""
@@ -222,14 +130,19 @@ class _Lanes:
         return fourier(grid), jnp.moveaxis(fourier(jnp.moveaxis(dgrid, -1, -2)), -2, -1)
 
     def inner(self, coef, dcoef, z, mu, v0, scan=False):
-        out = _inner(coef, dcoef, jnp.asarray(z), jnp.asarray(mu), self.lower, self.upper,
+        out = inner(coef, dcoef, jnp.asarray(z), jnp.asarray(mu), self.lower, self.upper,
                      jnp.asarray(v0), jnp.asarray(scan), self.data)
+        return tuple(np.asarray(a) for a in out)
+
+    def full(self, v0):
+        out = full(self.coef, self.dcoef, jnp.asarray(self.z), self.lower, self.upper,
+                    jnp.asarray(v0), self.data)
         return tuple(np.asarray(a) for a in out)
 
 
 def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
     """Outer Levenberg–Marquardt on z (exact Jacobian of the steady cycle), every lane at once:
-    the inner linearised step (with φ and b) from :func:`_inner`; a lane accepts its step when
+    the inner linearised step (with φ and b) from :func:`~jaxdobby.identify.inner.inner`; a lane accepts its step when
     the true cost falls (then μ/3), else μ·10 and a shorter step. Stops when every lane's step
     is below :data:`STEP_TOLERANCE` in z or the cost falls by less than
     :data:`COST_TOLERANCE` relative (or μ has grown past 1e8: no descent left)."""
@@ -238,10 +151,10 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
     mu = np.full(n_lanes, 1e-3)
     v0 = np.zeros((n_lanes, p + 2))
     # φ and b at the starting z: the phase scan, then the fit of (φ, b) alone (δ pinned by μ)
-    _, v, _, _, _ = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, np.full(n_lanes, 1e12), v0,
+    _, v, _ = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, np.full(n_lanes, 1e12), v0,
                                 scan=True)
     v0[:, p:] = v[:, p:]
-    cost, step, ok, _, _ = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
+    cost, step, ok = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
     done = np.zeros(n_lanes, bool)
     for iteration in range(max_iterations):
         if progress is not None:
@@ -250,7 +163,7 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
         z_try = np.clip(lanes.z + step[:, :p], lanes.par.lower, lanes.par.upper)
         coef_try, dcoef_try = lanes.grids(z_try)
         v_try = np.concatenate([np.zeros((n_lanes, p)), step[:, p:]], axis=1)
-        cost_try, step_try, ok_try, _, _ = lanes.inner(coef_try, dcoef_try, z_try, mu / 3,
+        cost_try, step_try, ok_try = lanes.inner(coef_try, dcoef_try, z_try, mu / 3,
                                                        v_try)
         accept = np.isfinite(cost_try) & (cost_try <= cost) & ~done
         small = ((np.max(np.abs(z_try - lanes.z), axis=1) < STEP_TOLERANCE)
@@ -264,8 +177,8 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
         mu = np.where(accept, mu / 3, mu * 10)
         if done.all():
             break
-        _, step_rej, ok_rej, _, _ = (lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
-                                     if not accept.all() else (None, step_try, ok_try, 0, 0))
+        _, step_rej, ok_rej = (lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
+                               if not accept.all() else (None, step_try, ok_try))
         step = np.where(accept[:, None], step_try, step_rej)
         ok = np.where(accept, ok_try, ok_rej)
     return cost, v0, done
@@ -304,7 +217,7 @@ def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | Non
         sigma[1] = float(np.std(meas.position / MM)) or 1.0
     lanes = _Lanes(setup, par, method, steps, _starts(par, starts, spread, seed))
     n_coef = lanes.coef.shape[-1]
-    lanes.data = _problem(meas, period, sigma, n_coef)
+    lanes.data = problem(meas, period, sigma, n_coef)
     cost, v, done = _least_squares(lanes, max_iterations, progress)
     if len(meas.channels) == 2:  # reweight by each channel's residual RMS, refit every lane
         best = int(np.argmin(np.where(np.isfinite(cost), cost, np.inf)))
@@ -312,7 +225,7 @@ def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | Non
         n, size = meas.time.size, lanes.data.phase.size
         sigma = [float(np.sqrt(np.mean((r[c * size:c * size + n] * sigma[c]) ** 2))) or 1.0
                  for c in range(2)]
-        lanes.data = _problem(meas, period, sigma, n_coef)
+        lanes.data = problem(meas, period, sigma, n_coef)
         cost, v, done = _least_squares(lanes, max_iterations, progress)
     cost = np.where(np.isfinite(cost), cost, np.inf)
     best = int(np.argmin(cost))
@@ -323,8 +236,8 @@ def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | Non
 
 
 def _final(lanes: _Lanes, v):
-    """(cost, residuals, Jacobian in (z, φ, b)) of every lane at its current point."""
+    """(None, residuals, Jacobian in (z, φ, b)) of every lane at its current point."""
     p = len(lanes.par.names)
     v0 = np.concatenate([np.zeros((v.shape[0], p)), v[:, p:]], axis=1)
-    cost, _, _, r, jac = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, np.ones(v.shape[0]), v0)
-    return cost, r, jac
+    r, jac = lanes.full(v0)
+    return None, r, jac
