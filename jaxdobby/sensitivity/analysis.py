@@ -124,11 +124,12 @@ class SobolResult:
         u = max(len("unit"), *(len(x) for x in units))
         lines = [f"Sobol indices ({self.conf_level:.0%} intervals); {self.failures.summary}"]
         rows = self.failures.n * self.space.rows_per_base_sample(self.second_order)
-        for code, w in self.warnings.items():
-            shown = ", ".join(map(str, w["samples"][:8])) + (" …" if w["count"] > 8 else "")
+        for code, entry in self.warnings.items():  # (not `w`: the column width above)
+            shown = (", ".join(map(str, entry["samples"][:8]))
+                     + (" …" if entry["count"] > 8 else ""))
             kept = "" if code in ("not_converged", "workspace") else ", still in the indices"
-            lines.append(f"warning [{code}]: {w['count']} of {rows} samples (rows {shown}; all "
-                         f"in indices.json){kept}")
+            lines.append(f"warning [{code}]: {entry['count']} of {rows} samples (rows {shown}; "
+                         f"all in indices.json){kept}")
         for m, ix in self.metrics.items():
             lines += ["", m + (f"  ({ix.note})" if ix.note else ""),
                       f"  {'parameter':<{w}}  {'unit':<{u}}  {'S1':>17}  {'ST':>17}"]
