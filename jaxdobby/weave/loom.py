@@ -12,7 +12,8 @@ L_i = L₁ + (i − 1)·pitch (similar triangles).
 position): one compiled program for the set, whatever the number of frames; a frame whose plan
 never moves is static — answered without dynamics (zero deviation and dwell vibration, rigid
 acceleration 0; its constant static deflection is not computed: deviation min/max None) and
-left out of the batch.
+left out of the batch. Each moving frame carries the validity warnings of a single run
+(:func:`frame_warnings`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from ..errors import InputError
 from ..machine import Machine, OperatingPoint
 from ..simulate import simulate
 from ..stroke import arc_length_for_stroke
+from ..validity import validity_arrays, warnings_of
 from .plan import moves, plan_text
 
 CHUNK = 16
@@ -55,7 +57,8 @@ def _batch(machine, operating, plans, positions):
     def one(plan, s):
         run = simulate(machine.with_link11_arc_length(s), operating, lift_plan=plan)
         return dict(run.metrics, **run.pick_metrics, converged=run.converged,
-                    deviation=run.series.deviation, t=run.series.t)
+                    deviation=run.series.deviation, t=run.series.t,
+                    periodicity=run.periodicity, **validity_arrays(run))
 
     return jax.vmap(one)(plans, positions)
 
@@ -89,4 +92,17 @@ def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, st
                            acceleration_amp=0.0, dwell_vibration=np.zeros(picks),
                            dwell_vibration_max=0.0, shed_deviation=np.zeros(picks),
                            moves=np.zeros(picks), converged=True, deviation=None)
+    speed = float(operating.speed)
+    for row in rows:
+        row["warnings"] = [] if row["static"] else frame_warnings(row, speed)
     return rows
+
+
+def frame_warnings(row: dict, speed: float, tolerance: float = 1e-6) -> list[dict]:
+    """The validity warnings (:func:`jaxdobby.validity.warnings_of`) of one moving frame's row
+    of :func:`run_frames` at ``speed`` [rad/s]; ``tolerance``: simulate's periodicity. The
+    arm's stress is not computed in the batch, so there is no stress check."""
+    arrays = {k: v for k, v in row.items() if k.startswith("validity.")}
+    arrays.update(converged=row["converged"], periodicity=row["periodicity"],
+                  stroke=row["stroke"], speed=speed, **{"metric.deviation_pp": row["deviation_pp"]})
+    return warnings_of(arrays, tolerance)
