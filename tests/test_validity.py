@@ -211,7 +211,7 @@ def test_sobol_sample_warnings_name_the_rows_of_every_check():
 def test_a_batch_counts_the_resonances_of_the_single_run_check():
     # the batch evaluator's per-sample count (sequential assembly under vmap, frequencies at 24
     # phases) against the resonance warnings simulate reports for the same machine: 800 r/min
-    # none, 1200 r/min harmonics 10 and 11 on mode 1, a 3 mm arm harmonic 12 (README, Limits)
+    # none, 1200 r/min harmonics 11 and 12 on mode 1, a 3 mm arm harmonic 12 (README, Limits)
     setups = [Setup(), apply(Setup(), {"speed": 1200 * np.pi / 30}),
               apply(Setup(), {"thickness": 3e-3})]
     expected = [sum(w["code"] == "resonance" for w in warnings_of(_report(s))) for s in setups]
