@@ -8,8 +8,7 @@ each sample row runs the full steady-state cycle of :func:`jaxdobby.simulate.sim
 ``stress_max_mpa`` (largest |σ| over the arm and the cycle) and ``fatigue_safety_factor``
 (Goodman, smallest over the arm)
 
-to ``deviation_pp_mm`` and ``acceleration_amp_m_s2``, and every validity output of a single run
-(:func:`jaxdobby.sensitivity.validity.run_outputs`: each check counted per sample). It is slower than the reduced-in-solve
+to ``deviation_pp_mm`` and ``acceleration_amp_m_s2``. It is slower than the reduced-in-solve
 batch evaluator of the default model (a dense cycle and 1729 × 100 stresses per sample, ~1.5 MB
 of intermediate arrays per row: ``--chunk-size 128`` keeps a chunk under 0.2 GB).
 """
@@ -28,7 +27,6 @@ def dobby_stress_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
     def build(space):
         from ..simulate import _simulate
         from ..stress.cycle import run_stress
-        from .validity import run_outputs
 
         names, scales = space.names, space.si_scales
         start = Setup() if base is None else base
@@ -44,8 +42,7 @@ def dobby_stress_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
                     "acceleration_amp_m_s2": run.metrics["acceleration_amp"],
                     "stress_max_mpa": m["stress_max"] * 1e-6,
                     "fatigue_safety_factor": m["fatigue_safety_factor"],
-                    "ok": run.converged & ok,
-                    **run_outputs(run, m["stress_max"], tolerance)}
+                    "ok": run.converged & ok}
 
         return model
 
