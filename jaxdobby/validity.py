@@ -27,12 +27,16 @@ carries a list of warnings, each a dict ``{"code", "message", "value", "limit"}`
   resonance the response is damping-controlled (2 % modal damping: half-power half-width 2 %)
   and sensitive to every parameter.
 * ``not_converged`` — the periodic steady state was not found to the required periodicity.
-* ``stress`` — reserved for peak stress against the arm's yield strength (issue: arm stress);
-  add its array to :func:`validity_arrays` and its check to :func:`warnings_of`.
+* ``yield_exceeded`` (peak stress above the arm's yield strength: the elastic model no longer
+  holds) and ``fatigue_limit_exceeded`` (Goodman factor < 1) — the arm's stress checks, made by
+  :func:`jaxdobby.stress.summary.warning_entries` and added to the same list by
+  :func:`jaxdobby.simulate.summary_of`.
 
 :func:`validity_arrays` computes, inside the traced run, the arrays these checks need (they are
 part of :func:`jaxdobby.simulate.report_arrays`, so the stored program returns them);
-:func:`warnings_of` turns them into warnings on the host.
+:func:`warnings_of` turns them into warnings on the host; :func:`setup_warnings` runs them for a
+machine another command found (optimize, identify). A batched evaluator counts them per sample
+(:mod:`jaxdobby.sensitivity.validity`).
 """
 
 from __future__ import annotations
@@ -66,8 +70,9 @@ PHASES = 24
 """Phases of the cycle at which the coupled frequencies are evaluated."""
 
 CODES = ("not_converged", "arm_deflection", "deviation_of_stroke", "workspace",
-         "transmission_angle", "resonance")
-"""Every warning code, in the order they are reported (``stress`` to come)."""
+         "transmission_angle", "resonance", "yield_exceeded", "fatigue_limit_exceeded")
+"""Every warning code, in the order tallies report them (the last two are the arm's stress
+checks, :mod:`jaxdobby.stress.summary`)."""
 
 
 def validity_arrays(run) -> dict[str, Array]:
@@ -140,21 +145,30 @@ def warnings_of(arrays: dict, tolerance: float = 1e-6) -> list[dict]:
             f"{mu:.1f}° on the flexible motion (limit {TRANSMISSION_LIMIT:g}°): the double "
             "rocker is near its dead centre", mu, TRANSMISSION_LIMIT))
     out.extend(_resonances(arrays))
-    # stress: once report_arrays carries the arm's peak stress, compare it here with the
-    # material's yield strength (code "stress", value and limit in MPa).
     return out
+
+
+def resonant(cycle_hz, low, high):
+    """Which cycle harmonics are resonant: a (:data:`HARMONICS`, modes) boolean mask, True where
+    harmonic k·``cycle_hz`` [Hz] (k = 1…HARMONICS) lies within :data:`RESONANCE_BAND` of mode
+    m's frequency range [``low[m]``, ``high[m]``] [Hz] over the cycle. numpy or JAX arrays (the
+    same condition on the host for one run and traced for a batch's samples)."""
+    f = cycle_hz * np.arange(1, HARMONICS + 1, dtype=float)[:, None]
+    return (low * (1 - RESONANCE_BAND) <= f) & (f <= high * (1 + RESONANCE_BAND))
 
 
 def _resonances(arrays: dict) -> list[dict]:
     """``resonance`` warnings: cycle harmonics within the band of a coupled frequency."""
     cycle_hz = float(np.asarray(arrays["speed"])) / (4.0 * math.pi)  # ω/(2π)/2: two picks
     freqs = np.asarray(arrays["validity.frequencies"])
+    lows, highs = np.min(freqs, axis=0), np.max(freqs, axis=0)
+    mask = resonant(cycle_hz, lows, highs)
     out = []
     for mode in range(freqs.shape[1]):
-        low, high = float(np.min(freqs[:, mode])), float(np.max(freqs[:, mode]))
+        low, high = float(lows[mode]), float(highs[mode])
         for k in range(1, HARMONICS + 1):
             f = k * cycle_hz
-            if low * (1 - RESONANCE_BAND) <= f <= high * (1 + RESONANCE_BAND):
+            if mask[k - 1, mode]:
                 near = min(max(f, low), high)
                 out.append(_warning(
                     "resonance", f"cycle harmonic {k} ({f:.1f} Hz"
@@ -163,6 +177,32 @@ def _resonances(arrays: dict) -> list[dict]:
                     "Hz over the cycle): the response is resonant, sensitive to damping",
                     f, near))
     return out
+
+
+def phase_frequencies(model) -> Array:
+    """The coupled natural frequencies [Hz] at :data:`PHASES` phases of the cycle of a
+    :class:`~jaxdobby.dobby.DobbyModel`, shape (PHASES, k), one phase at a time
+    (``lax.map``: no batched LAPACK call, see :func:`jaxdobby.periodic.steady.prepare`)."""
+    phases = model.period * jnp.arange(PHASES) / PHASES
+    return jax.lax.map(lambda t: coupled_frequencies(model, t), phases)
+
+
+def setup_warnings(setup, options, *, directory=None) -> list[dict]:
+    """The warnings ``jaxdobby simulate`` reports for ``setup`` (a
+    :class:`~jaxdobby.parameters.Setup`) run with ``options`` (a
+    :class:`~jaxdobby.config.RunOptions`): its summary's ``warnings`` (the checks above and the
+    arm's stress), through the command line's stored program (``directory``: where programs
+    are stored; :func:`jaxdobby.simulate.stored_report`). For commands whose own solver is
+    another (optimize, identify): their resulting machine, checked as simulate would. A run
+    that fails (non-finite numbers) is one ``not_converged`` warning naming why (value and
+    limit None)."""
+    from .simulate import stored_report
+
+    summary = stored_report(setup, options, directory=directory)[0]
+    reason = failure(summary)
+    if reason is not None:
+        return [{"code": "not_converged", "message": reason, "value": None, "limit": None}]
+    return summary["warnings"]
 
 
 def warning_lines(warnings: list[dict]) -> str:
@@ -207,30 +247,3 @@ def tally_lines(counts: dict[str, dict], total: int, what: str = "runs", limit: 
         more = " …" if len(entry["samples"]) > limit else ""
         lines.append(f"  warning [{code}]: {entry['count']} of {total} {what}: {shown}{more}")
     return "\n".join(lines)
-
-
-def sample_warnings(names, samples, outputs, stroke_mm: float) -> dict[str, dict]:
-    """Per-sample warnings of a Sobol design from its outputs (users' units), as
-    ``{code: {"count", "samples", "limit"}}`` with the design's row indices: ``not_converged``
-    (a failed sample, ``ok`` False) and ``deviation_of_stroke`` (``deviation_pp_mm`` over the
-    row's stroke — sampled, or ``stroke_mm`` — above :data:`DEVIATION_LIMIT`). The batch
-    evaluator returns only these metrics, so the arm's deflection, the workspace and the
-    resonance checks of a single run are not available per sample. Empty for a model without
-    ``deviation_pp_mm``."""
-    if "deviation_pp_mm" not in outputs:
-        return {}
-    samples = np.asarray(samples)
-    dev = np.asarray(outputs["deviation_pp_mm"], dtype=float)
-    stroke = samples[:, list(names).index("stroke")] if "stroke" in names else stroke_mm
-    ok = np.asarray(outputs.get("ok", np.ones(dev.shape, bool)), dtype=bool)
-    out = {}
-    failed = np.flatnonzero(~ok)
-    if failed.size:
-        out["not_converged"] = {"count": int(failed.size), "samples": failed.tolist(),
-                                "limit": None}
-    share = np.abs(dev) / stroke
-    large = np.flatnonzero(ok & ~(share <= DEVIATION_LIMIT))
-    if large.size:
-        out["deviation_of_stroke"] = {"count": int(large.size), "samples": large.tolist(),
-                                      "limit": 100 * DEVIATION_LIMIT}
-    return out

@@ -278,6 +278,13 @@ def test_cli_json_and_outputs(fitted, tmp_path, capsys):
                                    rtol=1e-3)
     np.testing.assert_allclose(printed["phase_deg"], 720.0 * res.phase, atol=1e-4)
     assert (out / "identify.json").exists() and (out / "identify_fit.png").exists()
+    # the warnings list holds the fit's entries and the identified machine's validity
+    # warnings, those simulate gives identified.toml (same codes; the fit's own are not)
+    assert main(["simulate", "--config", str(out / "identified.toml"), "--json"]) == 0
+    rerun = json.loads(capsys.readouterr().out)
+    fit_codes = {"not_identifiable", "at_bound", "fit_not_converged", "fit"}
+    assert ([w["code"] for w in printed["warnings"] if w["code"] not in fit_codes]
+            == [w["code"] for w in rerun["warnings"]])
     # identified.toml goes through the configuration parser of `simulate --config` (every key
     # and range checked) and holds the estimates; the run itself is in the slow test below
     setup, _ = load(out / "identified.toml")
@@ -295,6 +302,24 @@ def test_identified_toml_runs_through_simulate(fitted, tmp_path, capsys):
     assert main(["simulate", "--config", str(tmp_path / "identified.toml"), "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed["converged"]
+
+
+def test_fit_warnings_are_named_entries_of_the_warnings_list():
+    # the lines uncertainty.summarise writes (its texts), as entries of the shared list
+    from jaxdobby.identify.report import fit_warning_entries
+
+    lines = ["heald_frame_mass_kg is on a bound of its range: its estimate and standard error "
+             "are not those of an interior minimum",
+             "not identifiable: damping_ratio (standard error 3 against the estimate 0.02) is "
+             "not determined by this trace",
+             "not identifiable: a and b are correlated +0.9999: this trace fixes a combination "
+             "of the two, not each",
+             "the optimiser did not converge: the estimates are its last iterate"]
+    got = fit_warning_entries(lines)
+    assert [w["code"] for w in got] == ["at_bound", "not_identifiable", "not_identifiable",
+                                        "fit_not_converged"]
+    assert all(set(w) == {"code", "message", "value", "limit"} for w in got)
+    assert [w["message"] for w in got] == lines
 
 
 BAD = [

@@ -76,3 +76,24 @@ def test_bad_input_is_one_line_and_exit_2(args, words, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"jaxdobby {args[0]}: error:") and words in err[-1]
 
+
+def test_a_frame_row_is_checked_as_a_single_run():
+    # a row of run_frames (SI: deviation and stroke in m) gives the warnings warnings_of gives
+    # the same numbers as a simulate report: 8 mm of a 140 mm stroke is 5.7 % (> 5 %), the
+    # joint's deflection 1.5 % of its radius (> 1 %), converged, no resonance at 800 r/min
+    # (mode 1 at 100-110 Hz: harmonics 10·800/120 = 66.7 Hz … 12 → 80 Hz stay below 97 Hz)
+    from jaxdobby.validity import warnings_of
+    from jaxdobby.weave.loom import frame_warnings
+
+    row = {"deviation_pp": 0.008, "stroke": 0.14, "converged": True, "periodicity": 1e-9,
+           "validity.deflection_ratio": 0.015, "validity.reach_margin": 1e-2,
+           "validity.sin_transmission": 0.9,
+           "validity.frequencies": np.array([[100.0, 4000.0], [110.0, 4400.0]])}
+    speed = 800 * np.pi / 30
+    got = frame_warnings(row, speed)
+    assert [w["code"] for w in got] == ["arm_deflection", "deviation_of_stroke"]
+    assert got[1]["value"] == pytest.approx(100 * 0.008 / 0.14, rel=1e-12)
+    same = {k: v for k, v in row.items() if k.startswith("validity.")}
+    same.update({"converged": True, "periodicity": 1e-9, "stroke": 0.14, "speed": speed,
+                 "metric.deviation_pp": 0.008})
+    assert got == warnings_of(same)

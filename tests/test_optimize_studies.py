@@ -192,5 +192,9 @@ def test_cli_design_reruns_with_simulate_config(tmp_path, capsys):
     # periodic states differ only within the shooting tolerances (1e-9 here, 1e-6 relative
     # periodicity in simulate), so the peak-to-peak agrees to ~1e-6 relative or better.
     assert rerun["deviation_pp_mm"] == pytest.approx(reported, rel=1e-5)
+    # the optimised design carries the validity warnings simulate gives it (same codes)
+    assert ([w["code"] for w in summary["per_speed"][0]["optimised"]["warnings"]]
+            == [w["code"] for w in rerun["warnings"]])
+    assert [w["code"] for w in summary["warnings"]] == [w["code"] for w in rerun["warnings"]]
     assert rerun["thickness_mm"] == pytest.approx(summary["optimised"]["design"]["thickness_mm"],
                                                   rel=1e-12)

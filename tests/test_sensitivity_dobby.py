@@ -52,6 +52,37 @@ def test_written_indices_and_figures(small_run):
     assert any(p.suffix == ".png" for p in (out / "figures").iterdir())
 
 
+def test_validity_warnings_name_the_rows_a_single_run_flags(small_run):
+    # the per-sample validity outputs are not metrics (no indices) and the rows they flag are
+    # those whose machine simulate warns about (the same resonance condition on the same
+    # frequencies; the deviation from another solver, equal to ~1e-6): every flagged row and
+    # the two fastest unflagged ones, re-run through the command line's stored program
+    from jaxdobby.cli import _cache_dir
+    from jaxdobby.config import RunOptions
+    from jaxdobby.parameters import Setup
+    from jaxdobby.programs import call_stored
+    from jaxdobby.sensitivity.dobby import setup_of_row
+    from jaxdobby.simulate import report_program
+    from jaxdobby.validity import warnings_of
+
+    data = json.loads((small_run.out / "indices.json").read_text())
+    assert not any(k.startswith("validity.") for k in data["metrics"])
+    warned = {code: set(w["samples"]) for code, w in data["warnings"].items()}
+    assert set(warned) <= {"deviation_of_stroke", "resonance"}  # measured: rows 91, 123 both
+    samples = np.load(small_run.out / "outputs.npz")["samples"]
+    flagged = sorted(set().union(*warned.values()))
+    fastest = [int(i) for i in np.argsort(-samples[:, 0]) if i not in flagged][:2]
+    assert flagged and all(samples[i, 0] > 1000.0 for i in flagged)
+    for row in flagged + fastest:
+        setup, _ = setup_of_row(Setup(), small_run.space.names, small_run.space.si_scales,
+                                samples[row])
+        name, fn, args, key = report_program(setup, RunOptions())
+        arrays = call_stored(name, fn, args, static_key=key, directory=_cache_dir() / "programs")
+        codes = {w["code"] for w in warnings_of({k: np.asarray(v) for k, v in arrays.items()})}
+        for code in ("deviation_of_stroke", "resonance"):
+            assert (code in codes) == (row in warned.get(code, ())), (row, code, codes)
+
+
 @pytest.mark.parametrize("text, expected", [
     ("[parameters]\nthickness = [-1, 8]", "parameter 'thickness': bounds must lie in (0.0, inf) "
      "[mm]"),

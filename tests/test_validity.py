@@ -24,19 +24,25 @@ from jaxdobby.dobby import LINK, build_model, rigid_joint_position
 from jaxdobby.parameters import SPEED_RANGE, Setup, apply
 from jaxdobby.programs import call_stored
 from jaxdobby.simulate import report_program, simulate, summary, summary_of
+from jaxdobby.sensitivity.validity import sample_resonances, sample_warnings
 from jaxdobby.validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, RESONANCE_BAND, failure,
-                               sample_warnings, tally, tally_lines, warnings_of)
+                               tally, tally_lines, warnings_of)
+
+
+def _report(setup):
+    """Report arrays of ``setup`` through the command line's stored program (shared with the
+    command-line tests: no tracing of the dynamics once stored; any float values)."""
+    name, fn, args, key = report_program(setup, RunOptions())
+    arrays = call_stored(name, fn, args, static_key=key, directory=_cache_dir() / "programs")
+    return {k: np.asarray(v) for k, v in arrays.items()}
 
 
 @pytest.fixture(scope="module")
 def default_run():
-    """(model, report arrays) of the default run, through the command line's stored program
-    (shared with the command-line tests: no tracing of the dynamics once stored)."""
+    """(model, report arrays) of the default run."""
     setup = Setup()
-    name, fn, args, key = report_program(setup, RunOptions())
-    arrays = call_stored(name, fn, args, static_key=key, directory=_cache_dir() / "programs")
     model = eqx.filter_jit(build_model)(setup.machine, setup.operating)
-    return model, {k: np.asarray(v) for k, v in arrays.items()}
+    return model, _report(setup)
 
 
 def test_default_machine_is_inside_every_limit(default_run):
@@ -172,6 +178,49 @@ def test_tally_counts_each_run_once_per_code_and_names_it():
     assert tally_lines(counts, 3).splitlines()[1] == "  warning [resonance]: 2 of 3 runs: 1200, 2000"
 
 
+def test_sobol_sample_warnings_name_the_rows_of_every_check():
+    # the stress model's validity outputs: row 0 inside every limit, each other row fails one
+    # check just past its limit (1 %, 20°, yield ratio 1, Goodman 1), row 7 failed unconverged,
+    # row 8 failed although converged (the chain left its reach: workspace)
+    names, n = ("speed",), 9
+    base = {"deviation_pp_mm": np.full(n, 3.0), "ok": np.ones(n, bool),
+            "validity.converged": np.ones(n), "validity.deflection_ratio": np.full(n, 0.005),
+            "validity.reach_margin": np.full(n, 1e-2), "validity.resonances": np.zeros(n),
+            "validity.sin_transmission": np.full(n, 0.9), "validity.yield_ratio": np.full(n, 0.5),
+            "fatigue_safety_factor": np.full(n, 1.5)}
+    changes = {1: ("validity.deflection_ratio", 1.01 * DEFLECTION_LIMIT),
+               2: ("validity.reach_margin", -1e-6),
+               3: ("validity.sin_transmission", math.sin(math.radians(19.9))),
+               4: ("validity.resonances", 2.0), 5: ("validity.yield_ratio", 1.001),
+               6: ("fatigue_safety_factor", 0.999)}
+    for row, (key, value) in changes.items():
+        base[key][row] = value
+    base["ok"][7:] = False
+    base["validity.converged"][7] = 0.0
+    base["deviation_pp_mm"][7] = np.nan
+    got = sample_warnings(names, np.zeros((n, 1)), base, stroke_mm=140.0)
+    assert {code: w["samples"] for code, w in got.items()} == {
+        "not_converged": [7], "arm_deflection": [1], "workspace": [2, 8],
+        "transmission_angle": [3], "resonance": [4], "yield_exceeded": [5],
+        "fatigue_limit_exceeded": [6]}
+    # the limits in the units of the single run's warnings (%, °, ratio)
+    assert got["arm_deflection"]["limit"] == 100 * DEFLECTION_LIMIT
+    assert got["transmission_angle"]["limit"] == 20.0
+
+
+def test_a_batch_counts_the_resonances_of_the_single_run_check():
+    # the batch evaluator's per-sample count (sequential assembly under vmap, frequencies at 24
+    # phases) against the resonance warnings simulate reports for the same machine: 800 r/min
+    # none, 1200 r/min harmonics 11 and 12 on mode 1, a 3 mm arm harmonic 12 (README, Limits)
+    setups = [Setup(), apply(Setup(), {"speed": 1200 * np.pi / 30}),
+              apply(Setup(), {"thickness": 3e-3})]
+    expected = [sum(w["code"] == "resonance" for w in warnings_of(_report(s))) for s in setups]
+    assert expected == [0, 2, 1]
+    batch = jax.tree.map(lambda *xs: jnp.stack(xs), *setups)
+    counts = eqx.filter_jit(jax.vmap(sample_resonances))(batch)
+    np.testing.assert_array_equal(np.asarray(counts), expected)
+
+
 def test_sobol_sample_warnings_name_the_rows():
     # rows: stroke sampled (third column); deviation 7.5 mm is 5.4 % of 140 mm, 3 mm is 2.1 %
     names = ("speed", "warp_force", "stroke", "thickness")
@@ -183,3 +232,29 @@ def test_sobol_sample_warnings_name_the_rows():
     assert got["deviation_of_stroke"]["samples"] == [1]  # 3/80 = 3.75 % is inside
     assert got["not_converged"] == {"count": 1, "samples": [3], "limit": None}
     assert sample_warnings(names, samples, {"y": np.zeros(4)}, 140.0) == {}
+
+
+def test_optimize_checks_its_designs_as_simulate_does(capsys):
+    # jaxdobby optimize reports, per speed, the warnings simulate gives the design it wrote
+    # (design.toml: the collocation solver, 432 steps): here a 1 mm "optimum" from the default
+    from jaxdobby.optimize.command import _validity_text
+    from jaxdobby.optimize.study import design_warnings, speeds_from_rpm
+
+    summary = {"per_speed": [{"speed_rpm": 800.0, "start": {}, "optimised": {}}]}
+    design_warnings(summary, Setup(), apply(Setup(), {"thickness": 1e-3}),
+                    speeds_from_rpm([800.0]), 432, directory=_cache_dir() / "programs")
+    code, out, _ = run_cli(capsys, "simulate", "--thickness", "1", "--json")
+    expected = json.loads(out)["warnings"]
+    got = summary["per_speed"][0]["optimised"]["warnings"]
+    assert [w["code"] for w in got] == [w["code"] for w in expected]
+    assert {"arm_deflection", "deviation_of_stroke"} <= {w["code"] for w in got}
+    # the same run up to the speed's last bit (r/min to rad/s by two formulas)
+    for a, b in zip(got, expected):
+        assert a["value"] == pytest.approx(b["value"], rel=1e-9)
+    assert [w["code"] for w in summary["per_speed"][0]["start"]["warnings"]] == [
+        "fatigue_limit_exceeded"]  # the default machine's one (test above)
+    assert all(set(w) == {"code", "message", "value", "limit"}
+               and w["message"].startswith("at 800 r/min: ") for w in summary["warnings"])
+    text = _validity_text(summary)
+    assert "warning [arm_deflection]: at 800 r/min:" in text
+    assert "starting design's: fatigue_limit_exceeded" in text

@@ -123,13 +123,32 @@ def test_simulate_cli_with_a_lift_plan(tmp_path, capsys, monkeypatch):
 
 def test_loom_cli_named_weave(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("JAXDOBBY_CACHE_DIR", str(tmp_path / "cache"))
+    # a 2 mm arm at strokes near the default's: outside the small-deformation limits (arm
+    # deflection ~2.5 %, a resonance of mode 1 at 67-75 Hz), so the warnings are there
     assert main(["loom", "--weave", "satin5", "--frames", "3", "--modes", "2", "--json",
+                 "--thickness", "2", "--strokes", "130", "135", "140",
                  "--out", str(tmp_path)]) == 0
     result = json.loads(capsys.readouterr().out)
     assert [f["lift_plan"] for f in result["frames"]] == ["10000", "00100", "00001"]
     assert result["picks"] == 5
     for name in ("loom.json", "frames.csv", "lift_plan.png", "deviation.png"):
         assert (tmp_path / name).exists()
+    # each frame carries the validity warnings simulate gives the same frame (plan, stroke,
+    # modes; the stress checks are simulate's alone: the loom's batch computes no stress)
+    front = result["frames"][0]
+    assert main(["simulate", "--lift-plan", front["lift_plan"], "--modes", "2", "--stroke",
+                 repr(front["stroke_mm"]), "--thickness", "2", "--json"]) == 0
+    single = json.loads(capsys.readouterr().out)
+    stress_codes = {"yield_exceeded", "fatigue_limit_exceeded"}
+    expected = [w for w in single["warnings"] if w["code"] not in stress_codes]
+    assert [w["code"] for w in front["warnings"]] == [w["code"] for w in expected]
+    assert {"arm_deflection", "resonance"} <= {w["code"] for w in expected}
+    for a, b in zip(front["warnings"], expected):
+        assert a["value"] == pytest.approx(b["value"], rel=1e-6)
+    tallied = {code: e["samples"] for code, e in result["warnings"].items()}
+    for f in result["frames"]:
+        for code in {w["code"] for w in f["warnings"]}:
+            assert f["frame"] in tallied[code]
 
 
 TWO_MODES = Machine.default().replace(n_modes=2)

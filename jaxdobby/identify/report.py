@@ -26,9 +26,24 @@ def _finite(x):
     return float(x) if math.isfinite(x) else None
 
 
-def summary(result: Identified) -> dict:
+FIT_WARNINGS = (("not identifiable", "not_identifiable"), ("on a bound", "at_bound"),
+                ("did not converge", "fit_not_converged"))
+"""(words of a fit warning, its code) of :func:`fit_warning_entries`."""
+
+
+def fit_warning_entries(lines) -> list[dict]:
+    """The fit's warnings (:attr:`Identified.warnings`, one line each) as entries of the
+    ``warnings`` list (code, message, value, limit; :mod:`jaxdobby.validity`): codes
+    ``not_identifiable``, ``at_bound``, ``fit_not_converged`` (``fit`` for another)."""
+    return [{"code": next((c for words, c in FIT_WARNINGS if words in line), "fit"),
+             "message": line, "value": None, "limit": None} for line in lines]
+
+
+def summary(result: Identified, validity=()) -> dict:
     """The result in the users' units (TOML keys), JSON-ready (an infinite standard error or an
-    undefined correlation is ``null``)."""
+    undefined correlation is ``null``). ``warnings``: the fit's (:func:`fit_warning_entries`)
+    and ``validity``, the identified machine's validity warnings
+    (:func:`jaxdobby.validity.setup_warnings`, as ``jaxdobby simulate`` gives them)."""
     est = {k: v / _users(k) for k, v in result.estimates.items()}
     se = {k: _finite(v / _users(k)) for k, v in result.standard_errors.items()}
     corr = [[_finite(c) if np.isfinite(c) else None for c in row] for row in result.correlation]
@@ -36,7 +51,8 @@ def summary(result: Identified) -> dict:
            "residual_rms": result.residual_rms,
            "phase_deg": result.phase * LOOM_DEGREES_PER_CYCLE,
            "phase_error_deg": _finite(result.phase_error * LOOM_DEGREES_PER_CYCLE),
-           "converged": result.converged, "warnings": result.warnings,
+           "converged": result.converged,
+           "warnings": fit_warning_entries(result.warnings) + list(validity),
            "at_bound": result.at_bound}
     if result.position_offset is not None:
         out["position_offset_mm"] = result.position_offset * 1e3
@@ -65,7 +81,10 @@ def text(summ: dict) -> str:
     for k, v in summ["residual_rms"].items():
         lines.append(f"  residual RMS, {k}: {v:.4g}")
     lines.append(f"  converged: {'yes' if summ['converged'] else 'NO'}")
-    lines += [f"  warning: {w}" for w in summ["warnings"]]
+    if summ["warnings"]:
+        from ..validity import warning_lines
+
+        lines.append(warning_lines(summ["warnings"]))
     return "\n".join(lines)
 
 

@@ -298,11 +298,14 @@ def _check_start(space, jnp) -> None:
 
 def run(ns: argparse.Namespace) -> int:
     """Run ``jaxdobby optimize``; returns the exit status (0, or 1 if not converged)."""
+    from ..command_line import _cache_dir
     from .output import figures, write_outputs
     from .study import run_study
 
     study = build_study(ns)
-    outcome = run_study(study, progress=lambda line: print(line, file=sys.stderr, flush=True))
+    cache = _cache_dir()
+    outcome = run_study(study, progress=lambda line: print(line, file=sys.stderr, flush=True),
+                        programs=None if cache is None else cache / "programs")
     if ns.out:
         bounds = {f"{k}_{unit.replace(' ', '_')}": tuple(v) for (k, v), (unit, _) in
                   zip(outcome.summary["bounds"].items(), study.space.units())}
@@ -348,4 +351,20 @@ def summary_text(summary: dict) -> str:
     lines.append(f"  optimality: projected gradient {o['projected_gradient']:.2e}, violation "
                  f"{o['violation']:.2e}, complementarity {o['complementarity']:.2e}; "
                  f"converged: {'yes' if summary['converged'] else 'no'}")
+    if "warnings" in summary:
+        lines += ["", _validity_text(summary)]
+    return "\n".join(lines)
+
+
+def _validity_text(summary: dict) -> str:
+    """The optimised design's validity warnings (as ``jaxdobby simulate`` checks it), and the
+    codes of the starting design's."""
+    from ..validity import warning_lines
+
+    start = sorted({w["code"] for s in summary["per_speed"] for w in s["start"]["warnings"]})
+    lines = ["  validity of the optimised design (the checks of jaxdobby simulate): "
+             + ("warnings below" if summary["warnings"] else "inside every limit")
+             + f"; the starting design's: {', '.join(start) if start else 'none'}"]
+    if summary["warnings"]:
+        lines.append(warning_lines(summary["warnings"]))
     return "\n".join(lines)

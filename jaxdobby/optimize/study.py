@@ -68,8 +68,10 @@ class StudyResult:
     result: Result
 
 
-def run_study(study: Study, progress: Callable[[str], None] | None = None) -> StudyResult:
-    """Run ``study``; ``progress`` receives one line per iteration (and a few status lines)."""
+def run_study(study: Study, progress: Callable[[str], None] | None = None, *,
+              programs=None) -> StudyResult:
+    """Run ``study``; ``progress`` receives one line per iteration (and a few status lines).
+    ``programs``: where the validity check (:func:`design_warnings`) stores its program."""
     say = progress or (lambda _: None)
     space = study.space
     check_mass_budget(space, study.limits)
@@ -110,6 +112,9 @@ def run_study(study: Study, progress: Callable[[str], None] | None = None) -> St
                                     "total": time.perf_counter() - t0})
     summary["starts"] = {"candidates": study.starts, "best_objective": scanned,
                          "start_design": _design(space, u_start)}
+    say("checking the start and the optimum against the model's validity limits...")
+    design_warnings(summary, start_setup, final_setup, study.objective.speeds, evaluator.steps,
+                    directory=programs)
     setup_out = dataclasses.replace(
         final_setup, operating=dataclasses.replace(final_setup.operating,
                                                    speed=study.objective.speeds[0]))
@@ -125,6 +130,26 @@ def run_study(study: Study, progress: Callable[[str], None] | None = None) -> St
         for i, rpm in enumerate(speeds_rpm)}
     return StudyResult(history=rows, summary=summary, setup=final_setup, design_toml=toml,
                        profiles=profiles, deviations=deviations, result=result)
+
+
+def design_warnings(summary: dict, start: Setup, final: Setup, speeds, steps: int, *,
+                    directory=None) -> None:
+    """Add the validity warnings of the starting and optimised designs to ``summary``: at every
+    speed [rad/s], ``per_speed[i]["start"|"optimised"]["warnings"]`` as ``jaxdobby simulate``
+    reports them for that design (:func:`jaxdobby.validity.setup_warnings`: the collocation
+    solver with the study's ``steps``, the run ``design.toml`` describes), and
+    ``summary["warnings"]``: the optimised design's, each message prefixed with its speed
+    (code, message, value, limit, as simulate's)."""
+    from ..validity import setup_warnings
+
+    options = RunOptions(method="collocation", steps=steps)
+    for w, entry in zip(speeds, summary["per_speed"]):
+        for label, setup in (("start", start), ("optimised", final)):
+            at = dataclasses.replace(setup, operating=dataclasses.replace(setup.operating,
+                                                                          speed=w))
+            entry[label]["warnings"] = setup_warnings(at, options, directory=directory)
+    summary["warnings"] = [dict(w, message=f"at {e['speed_rpm']:g} r/min: {w['message']}")
+                           for e in summary["per_speed"] for w in e["optimised"]["warnings"]]
 
 
 def start_candidates(u0: np.ndarray, count: int, *, seed: int = 0) -> np.ndarray:

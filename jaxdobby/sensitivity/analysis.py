@@ -22,6 +22,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .failures import FailureReport, apply_policy
+from .models import VALIDITY_PREFIX
 from .space import ParameterSpace
 
 
@@ -64,7 +65,7 @@ class SobolResult:
         second_order, conf_level, num_resamples, seed: the analysis settings.
         run: free-form facts about the run (samples, chunk size, devices, …) for the JSON.
         warnings: per-sample validity warnings, ``{code: {"count", "samples", "limit"}}``
-            (:func:`jaxdobby.validity.sample_warnings`; samples are design row indices).
+            (:func:`jaxdobby.sensitivity.validity.sample_warnings`; samples are design row indices).
     """
 
     space: ParameterSpace
@@ -123,11 +124,12 @@ class SobolResult:
         u = max(len("unit"), *(len(x) for x in units))
         lines = [f"Sobol indices ({self.conf_level:.0%} intervals); {self.failures.summary}"]
         rows = self.failures.n * self.space.rows_per_base_sample(self.second_order)
-        for code, w in self.warnings.items():
-            shown = ", ".join(map(str, w["samples"][:8])) + (" …" if w["count"] > 8 else "")
-            kept = "" if code == "not_converged" else ", still in the indices"
-            lines.append(f"warning [{code}]: {w['count']} of {rows} samples (rows {shown}; all "
-                         f"in indices.json){kept}")
+        for code, entry in self.warnings.items():  # (not `w`: the column width above)
+            shown = (", ".join(map(str, entry["samples"][:8]))
+                     + (" …" if entry["count"] > 8 else ""))
+            kept = "" if code in ("not_converged", "workspace") else ", still in the indices"
+            lines.append(f"warning [{code}]: {entry['count']} of {rows} samples (rows {shown}; "
+                         f"all in indices.json){kept}")
         for m, ix in self.metrics.items():
             lines += ["", m + (f"  ({ix.note})" if ix.note else ""),
                       f"  {'parameter':<{w}}  {'unit':<{u}}  {'S1':>17}  {'ST':>17}"]
@@ -160,7 +162,8 @@ def analyze(space: ParameterSpace, outputs: Mapping[str, np.ndarray], *, n: int,
     Args:
         space: the parameter space the design was drawn from.
         outputs: per-row outputs (M,) of the whole design, M = n · rows per base sample, in
-            SALib's row order; ``"ok"`` is a status, not a metric.
+            SALib's row order; ``"ok"`` is a status and ``validity.*`` are validity outputs
+            (:data:`~jaxdobby.sensitivity.models.VALIDITY_PREFIX`), not metrics.
         n: base samples N of the design.
         second_order: whether the design holds the second-order blocks (and S2 is wanted).
         on_failure: ``"raise"`` or ``"drop"`` (see ``failures.py``).
@@ -177,6 +180,7 @@ def analyze(space: ParameterSpace, outputs: Mapping[str, np.ndarray], *, n: int,
 
     check_settings(num_resamples=num_resamples, conf_level=conf_level)
     step = space.rows_per_base_sample(second_order)
+    outputs = {k: v for k, v in outputs.items() if not k.startswith(VALIDITY_PREFIX)}
     metrics, report = apply_policy(outputs, n=n, rows_per_base_sample=step, policy=on_failure)
     result = {}
     for name, y in metrics.items():

@@ -288,9 +288,9 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
 
 
 def _sample_warnings(space, samples, outputs) -> dict:
-    """Per-sample validity warnings (:func:`jaxdobby.validity.sample_warnings`); a stroke not
-    sampled is the default machine's."""
-    from ..validity import sample_warnings
+    """Per-sample validity warnings (:func:`jaxdobby.sensitivity.validity.sample_warnings`); a
+    stroke not sampled is the default machine's."""
+    from .validity import sample_warnings
 
     if "deviation_pp_mm" not in outputs:
         return {}

@@ -14,7 +14,9 @@ solve) and returns, in the users' units of ``jaxdobby simulate``'s summary:
 ``deviation_pp_mm``, ``deviation_max_mm``, ``deviation_min_mm`` (heald frame displacement
 deviation, flexible − rigid), ``velocity_deviation_amp_m_s`` and ``acceleration_amp_m_s2``
 (peak-to-peak ranges over the cycle), plus ``ok`` (False when the periodic state did not
-converge, the chain left its workspace, or a metric is not finite: a *failed sample*).
+converge, the chain left its workspace, or a metric is not finite: a *failed sample*) and the
+validity outputs ``validity.converged``, ``validity.resonances``
+(:mod:`jaxdobby.sensitivity.validity`: counted per sample, no indices).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from ..parameters import PARAMETERS, Setup, apply
 from ..stroke import arc_length_for_stroke, stroke_range
 from .models import ModelSpec
 from .space import ParameterSpace, ParameterSpec
+from .validity import sample_resonances
 
 VECTOR_PARAMETERS = ("depth_positions",)
 """Parameters that are lists (not sampled; ``depth`` is sampled as a uniform depth)."""
@@ -71,6 +74,9 @@ def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
             out = steady_state_metrics(setup, steps=steps, tolerance=tolerance)
             metrics = {name: out[key] * factor for key, (name, factor) in METRIC_UNITS.items()}
             metrics["ok"] = out["ok"] & ok
+            # validity outputs (jaxdobby.sensitivity.validity): not metrics
+            metrics["validity.converged"] = (out["periodicity"] <= tolerance).astype(float)
+            metrics["validity.resonances"] = sample_resonances(setup)
             return metrics
 
         return model

@@ -29,6 +29,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from .models import VALIDITY_PREFIX
+
 POLICIES = ("raise", "drop")
 STATUS = "ok"
 """Name of the optional per-sample status entry in a model's outputs."""
@@ -55,7 +57,8 @@ def find_failures(outputs: Mapping[str, np.ndarray]) -> tuple[SampleFailure, ...
             = success; or an integer code, 0 = success).
     """
     status = outputs.get(STATUS)
-    metrics = {k: np.asarray(v) for k, v in outputs.items() if k != STATUS}
+    metrics = {k: np.asarray(v) for k, v in outputs.items()
+               if k != STATUS and not k.startswith(VALIDITY_PREFIX)}
     bad = np.zeros(len(next(iter(outputs.values()))), dtype=bool)
     if status is not None:
         status = np.asarray(status)

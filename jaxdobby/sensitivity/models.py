@@ -27,6 +27,9 @@ from .space import ParameterSpace, ParameterSpec
 
 Model = Callable[[Array], dict[str, Array]]
 
+VALIDITY_PREFIX = "validity."
+"""Model outputs whose name starts with this are validity outputs, not metrics."""
+
 
 @dataclasses.dataclass(frozen=True)
 class ModelSpec:

@@ -88,7 +88,7 @@ def frame_record(row: dict) -> dict:
             "dwell_vibration_pp_mm": [float(v) * mm for v in row["dwell_vibration"]],
             "shed_deviation_mm": [float(v) * mm for v in row["shed_deviation"]],
             "acceleration_amp_m_s2": float(row["acceleration_amp"]),
-            "converged": bool(row["converged"])}
+            "converged": bool(row["converged"]), "warnings": row.get("warnings", [])}
 
 
 def table(records: list[dict]) -> str:
@@ -139,6 +139,7 @@ def _animate(ns, setup, plan: np.ndarray, strokes_mm: np.ndarray) -> Path:
 
 def run(ns: argparse.Namespace, setup_from_args) -> int:
     from ..io import write_json, write_text
+    from ..validity import tally, tally_lines
     from .loom import run_frames
 
     setup, _ = setup_from_args(ns)
@@ -159,8 +160,9 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
     rows = run_frames(setup.machine, setup.operating, plan, strokes * 1e-3, progress=progress)
     records = [frame_record(r) for r in rows]
     speed_rpm = float(setup.operating.speed) * 60.0 / (2.0 * np.pi)
+    warned = tally((r["frame"], r["warnings"]) for r in records)
     result = {"source": source, "speed_rpm": speed_rpm, "picks": int(plan.shape[0]),
-              "frames": records}
+              "frames": records, "warnings": warned}
     if ns.out:
         from .figures import deviation_figure, lift_plan_figure
         from ..plots import plt
@@ -185,4 +187,7 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
         print(f"jaxdobby loom: {source}, {plan.shape[1]} frames, repeat of {plan.shape[0]} "
               f"picks, {speed_rpm:.0f} r/min\n")
         print(table(records))
+        if warned:
+            print("\nvalidity warnings, by frame (each frame's in --json):\n"
+                  + tally_lines(warned, len(records), "frames"))
     return 0 if all(r["converged"] for r in records) else 1

@@ -14,6 +14,7 @@ never moves is static — left out of the batch and answered without dynamics by
 :func:`~jaxdobby.simulate.simulate` with its concrete plan (:mod:`jaxdobby.weave.static`: the
 equilibrium at the top or bottom of its stroke; its deviation is the constant static
 deflection there, its peak-to-peak, dwell vibration and acceleration zero).
+Each moving frame carries the validity warnings of a single run (:func:`frame_warnings`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from ..errors import InputError
 from ..machine import Machine, OperatingPoint
 from ..simulate import simulate
 from ..stroke import arc_length_for_stroke
+from ..validity import validity_arrays, warnings_of
 from .plan import moves, plan_text
 
 CHUNK = 16
@@ -61,7 +63,8 @@ def frame_run(machine: Machine, operating: OperatingPoint, plan, stroke_m):
 
 def _row(run) -> dict:
     return dict(run.metrics, **run.pick_metrics, converged=run.converged,
-                deviation=run.series.deviation, t=run.series.t)
+                deviation=run.series.deviation, t=run.series.t, periodicity=run.periodicity,
+                **validity_arrays(run))
 
 
 @eqx.filter_jit
@@ -100,4 +103,17 @@ def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, st
             rows[i] = jax.tree.map(np.asarray, _row(run))
         rows[i].update(frame=i + 1, stroke=float(np.asarray(strokes_m)[i]),
                        lift_plan=plan_text(plan[:, i]), static=i not in moving)
+    speed = float(operating.speed)
+    for row in rows:
+        row["warnings"] = [] if row["static"] else frame_warnings(row, speed)
     return rows
+
+
+def frame_warnings(row: dict, speed: float, tolerance: float = 1e-6) -> list[dict]:
+    """The validity warnings (:func:`jaxdobby.validity.warnings_of`) of one moving frame's row
+    of :func:`run_frames` at ``speed`` [rad/s]; ``tolerance``: simulate's periodicity. The
+    arm's stress is not computed in the batch, so there is no stress check."""
+    arrays = {k: v for k, v in row.items() if k.startswith("validity.")}
+    arrays.update(converged=row["converged"], periodicity=row["periodicity"],
+                  stroke=row["stroke"], speed=speed, **{"metric.deviation_pp": row["deviation_pp"]})
+    return warnings_of(arrays, tolerance)

@@ -87,7 +87,7 @@ print(f"phase of the first sample: {result['phase_deg']:.3f}° loom angle "
       f"(truth {0.37 * 720:.3f}°), sensor offset {result['position_offset_mm']:.4f} mm (truth 3)")
 print("residual RMS:", {k: round(v, 4) for k, v in result["residual_rms"].items()},
       "(the noise added: 5 m/s², 0.05 mm)")
-print("warnings:", result["warnings"] or "none")
+print("warnings:", [w["code"] for w in result["warnings"]] or "none")
 
 # %%
 # The claims of this notebook: the truth within three reported standard errors (one noise
@@ -98,7 +98,8 @@ for key in KEYS:
     assert abs(est - TRUTH[names[key]]) < 3 * se and se < 0.03 * TRUTH[names[key]]
 assert abs(result["phase_deg"] - 0.37 * 720) < 0.1
 assert abs(result["position_offset_mm"] - 3.0) < 0.01
-assert result["converged"] and not result["warnings"]
+FIT_CODES = ("not_identifiable", "at_bound", "fit_not_converged")
+assert result["converged"] and not [w for w in result["warnings"] if w["code"] in FIT_CODES]
 
 # %% [markdown]
 # The measured trace, the identified model through it, and the residuals (which should look
