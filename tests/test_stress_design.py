@@ -35,3 +35,18 @@ def test_stress_constraints_and_their_gradient():
     fd = (np.asarray(f(u0 + h)) - np.asarray(f(u0 - h))) / (2 * h)
     np.testing.assert_allclose(jac, fd, rtol=1e-4)
     assert np.all(jac < 0)  # a thicker arm is less stressed
+
+
+def test_stress_values_invert_the_constraint_rows():
+    """``jaxdobby optimize`` reports the smooth peak stress and fatigue factor from the
+    constraint rows c_stress = smax|σ|/σ_limit − 1, c_fatigue = n_min·smax(1/n) − 1
+    (jaxdobby.stress.design): a peak of 690 MPa and a utilisation 1/n = 1/1.2 give back exactly
+    690 MPa and n = 1.2 (round-off only); a study without stress constraints reports none."""
+    from jaxdobby.optimize.study import stress_values
+
+    limits = Constraints(mass_budget=0.42, stress_limit=600e6, fatigue_floor=1.5)
+    c = [0.0, 690e6 / 600e6 - 1.0, 1.5 / 1.2 - 1.0]  # mass, stress, fatigue (limits.names order)
+    out = stress_values(limits, c)
+    np.testing.assert_allclose(out["stress_max_smooth_mpa"], 690.0, rtol=1e-14)
+    np.testing.assert_allclose(out["fatigue_safety_factor_smooth"], 1.2, rtol=1e-14)
+    assert stress_values(Constraints(mass_budget=0.42), [0.0]) == {}

@@ -335,6 +335,11 @@ def summary_text(summary: dict) -> str:
                        ("stroke_mm", "stroke [mm]")):
         lines.append(f"  {label:<24} {summary['start'][key]:>12.4f} "
                      f"{summary['optimised'][key]:>12.4f}")
+    for key, label in (("stress_max_smooth_mpa", "peak stress smooth [MPa]"),
+                       ("fatigue_safety_factor_smooth", "fatigue factor (smooth)")):
+        if key in summary.get("stress", {}).get("optimised", {}):
+            lines.append(f"  {label:<24} {summary['stress']['start'][key]:>12.4f} "
+                         f"{summary['stress']['optimised'][key]:>12.4f}")
     lines.append("")
     lines.append(f"  {'speed [r/min]':<14} {'dev p-p start':>14} {'optimised':>10} "
                  f"{'change':>8}   (mm; modal model as in simulate)")

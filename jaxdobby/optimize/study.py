@@ -277,12 +277,29 @@ def _summary(study, evaluator, result: Result, start, final, speeds_rpm, seconds
         "objective_optimised": float(result.history[-1].objective),
         "per_speed": per_speed,
         "multipliers": {n: float(v) for n, v in zip(limits.names, result.multipliers)},
+        "stress": {"start": stress_values(limits, result.history[0].constraints),
+                   "optimised": stress_values(limits, result.history[-1].constraints)},
         "optimality": result.optimality, "converged": bool(result.converged),
         "iterations": len(result.history) - 1, "evaluations": result.history[-1].evaluations,
         "seconds": seconds,
         "note": ("'start'/'optimised' are the modal model of `jaxdobby simulate` (each design on "
                  "its own modes)"),
     }
+
+
+def stress_values(limits: Constraints, constraints) -> dict[str, float]:
+    """The stress constraints' smooth values from their rows c of :func:`constraints`
+    (:mod:`jaxdobby.stress.design`): ``stress_max_smooth_mpa`` = (c + 1)·σ_limit and
+    ``fatigue_safety_factor_smooth`` = n_min/(c + 1), the worst over the constraint's speeds
+    (the surrogates bound the true peak from above and the true factor from below, by about
+    1 %); empty without stress constraints."""
+    c = dict(zip(limits.names, np.asarray(constraints, dtype=float)))
+    out = {}
+    if "stress" in c:
+        out["stress_max_smooth_mpa"] = (c["stress"] + 1.0) * limits.stress_limit * 1e-6
+    if "fatigue" in c:
+        out["fatigue_safety_factor_smooth"] = limits.fatigue_floor / (c["fatigue"] + 1.0)
+    return out
 
 
 def _state(space, u, props) -> dict:

@@ -119,6 +119,97 @@ if not QUICK:
     assert depth["converged"] and depth["optimality"]["projected_gradient"] < 1e-4
 
 # %% [markdown]
+# ## Stress: the default arm fails in fatigue, and a design that does not
+#
+# **The default 6 mm arm is far above its fatigue limit at 800 r/min.** The link-11 force bends
+# the lever about the ring-link joint (s = 80 mm), where the stress swings from −680 to
+# +464 MPa over a cycle: its Goodman safety factor is 0.84 against a polished specimen's
+# endurance limit (500 MPa) and 0.56 for a machined arm (surface factor k_a = 0.72, size factor
+# k_b = 0.91: σ_e ≈ 328 MPa) — it would not survive 10⁹ cycles. At 1200 r/min the peak
+# (2190 MPa) is three times the yield strength.
+#
+# `jaxdobby optimize --fatigue-floor N` holds the Goodman factor as a constraint (smooth
+# surrogate, exact gradients through the steady cycle and the stress recovery). The problem
+# below designs the thickness **and** the depth profile together (six variables) at the default
+# arm's mass, for a machined arm, minimising the deviation at 800 r/min: without a stress
+# constraint, and with n ≥ 1.5 and n ≥ 2. These runs take tens of minutes on two
+# cores (most of it compiling the constraint's gradient), so the notebook **does not
+# re-optimise**: it reads the results that
+# `python benchmarks/optimize_stress.py` wrote to `benchmarks/results/optimize_stress.json`
+# (every design re-run there by `jaxdobby.simulate` on its own modes, at 800 and 1200 r/min,
+# with its stress recovered), and shows and checks them.
+
+# %%
+import matplotlib.pyplot as plt
+import numpy as np
+
+RESULTS = next(p / "benchmarks" / "results" for p in [Path.cwd(), *Path.cwd().parents]
+               if (p / "benchmarks" / "results" / "optimize_stress.json").exists())
+stress = json.loads((RESULTS / "optimize_stress.json").read_text())
+display(Markdown((RESULTS / "optimize_stress.md").read_text().split("\n", 2)[2]))
+
+default = stress["default"]["at"]["800"]
+print(f"default arm at 800 r/min: peak stress {default['stress_max_mpa']:.0f} MPa at "
+      f"s = {default['stress_max_position_mm']:.0f} mm, Goodman factor "
+      f"{default['fatigue_safety_factor']:.2f} machined, "
+      f"{default['fatigue_safety_factor_polished']:.2f} polished")
+# the default arm fails the fatigue check at 800 r/min, even as a polished specimen
+assert default["fatigue_safety_factor_polished"] < 1.0 and default["fatigue_safety_factor"] < 0.6
+
+# %%
+positions = np.array([0.0, 80.0, 153.0, 201.0, 226.0])  # the depth control points [mm]
+fig, ax = plt.subplots(figsize=(7, 3.2))
+ax.plot([0, 226], [40, 40], "k--", label="default: t = 6 mm, uniform 40 mm")
+for name, row in stress["rows"].items():
+    depth = [v for k, v in row["design"].items() if k.startswith("depth")]
+    a = row["at"]["800"]
+    ax.plot(positions, depth, "o-", label=f"{name}: t = {row['design']['thickness_mm']:.2f} mm, "
+            f"n = {a['fatigue_safety_factor']:.2f}, dev. {a['deviation_pp_mm']:.2f} mm")
+ax.axvline(80.0, color="0.7", lw=0.8)
+ax.text(81, 22, "ring-link joint", fontsize=8, color="0.4")
+ax.set(xlabel="arc length from the pivot s [mm]", ylabel="in-plane depth d [mm]",
+       title="Arm designs at the default arm's mass, 800 r/min")
+ax.legend(fontsize=7, loc="upper right")
+fig.tight_layout()
+plt.show()
+
+# %%
+default_mass = stress["default"]["arm_mass_kg"]
+for name, row in stress["rows"].items():
+    a = row["at"]["800"]
+    floor = row["fatigue_floor"]
+    smooth = (floor / (1.0 + row["final_constraints"]["c_fatigue"]) if floor else float("nan"))
+    print(f"{name}: t = {row['design']['thickness_mm']:.2f} mm, mass {row['arm_mass_kg']:.4f} kg, "
+          f"deviation {a['deviation_pp_mm']:.3f} mm, peak stress {a['stress_max_mpa']:.0f} MPa "
+          f"at s = {a['stress_max_position_mm']:.0f} mm, n = {a['fatigue_safety_factor']:.3f} "
+          f"(surrogate {smooth:.3f}; polished {a['fatigue_safety_factor_polished']:.2f}), "
+          f"multipliers {', '.join(f'{k} {v:.3g}' for k, v in row['multipliers'].items())}, "
+          f"{row['iterations']} iterations, reduced gradient "
+          f"{row['optimality']['projected_gradient']:.1e}")
+    met = all(v <= 1e-3 for v in row["final_constraints"].values())
+    # every design beats the default arm's deviation
+    assert a["deviation_pp_mm"] < default["deviation_pp_mm"]
+    if floor:
+        # the smooth surrogate of 1/n lies above the true largest 1/n (a soft maximum), so the
+        # factor the optimiser sees is at or below the true one simulate gives
+        assert smooth <= a["fatigue_safety_factor"] * (1 + 1e-3)
+    if met:  # the mass budget and the floor hold on the design's own modes
+        assert row["arm_mass_kg"] <= default_mass * (1 + 2e-3)
+        assert not floor or a["fatigue_safety_factor"] >= floor * (1 - 2e-3)
+
+free, rows = stress["rows"]["mass"], stress["rows"]
+# Without a stress constraint the deviation optimum is already safe to n = 1.6 at 800 r/min:
+# n >= 1.5 is inactive (multiplier 0) and leaves the deviation within 0.2 %.
+assert free["at"]["800"]["fatigue_safety_factor"] > 1.5
+assert rows["mass+fatigue>=1.5"]["multipliers"]["fatigue"] == 0.0
+assert abs(rows["mass+fatigue>=1.5"]["at"]["800"]["deviation_pp_mm"]
+           / free["at"]["800"]["deviation_pp_mm"] - 1) < 2e-3
+# n >= 2 was not met at this mass: the run ends over both the budget and the floor.
+assert max(rows["mass+fatigue>=2"]["final_constraints"].values()) > 0.01
+# At 1200 r/min no design at this mass passes the machined arm's fatigue check.
+assert all(r["at"]["1200"]["fatigue_safety_factor"] < 1.0 for r in rows.values())
+
+# %% [markdown]
 # ## Conclusions
 #
 # * **Thickness.** Over 6–8 mm the deviation falls as the plate thickens, but not
@@ -137,6 +228,16 @@ if not QUICK:
 #   uniform arm (2.709 → 1.700 mm at 800 r/min), with the first coupled mode up from 107 to
 #   132 Hz. It is a KKT point (reduced gradient 2e-5), but a local one: the objective is bumpy
 #   (resonances of the frame-on-arm mode with the pick rate's harmonics, notebook 04).
+# * **Stress.** The default arm is far above its fatigue limit at 800 r/min (n = 0.84 polished,
+#   0.56 machined; 680 MPa at the ring-link joint). The thickness-and-depth design at the
+#   default arm's mass — a 4.1 mm plate, 80 mm deep at the ring-link joint — lowers the
+#   deviation by 57 % (2.709 → 1.172 mm) and the peak stress from 680 to 248 MPa: n = 1.61
+#   machined, so a floor n ≥ 1.5 does not bind (multiplier 0, the same design). n ≥ 2 was not
+#   reached at this mass: after 30 iterations the run is 5.0 % over the mass budget at n = 1.91,
+#   its multipliers growing (a 100-iteration rerun stalled at the same point), which suggests
+#   n ≥ 2 needs more material than the default arm's in these bounds — the optimiser from one
+#   start does not prove it. At 1200 r/min none of these designs passes the machined arm's
+#   check (n ≈ 0.64–0.74).
 # * **The model the optimiser uses.** Every design is reduced on its own first four modes —
 #   the model `jaxdobby simulate` runs — and differentiated as the subspace those modes span
 #   (`jaxdobby.modal.mode_subspace`), so two modes crossing inside the kept set cause no NaN and
