@@ -81,10 +81,10 @@ def write_program(exported, path: Path) -> None:
 
 ONE_SHOT = {"xla_backend_optimization_level": 0}
 """XLA options of a program run once per process (``jaxdobby simulate``'s): LLVM's optimisation
-level 0 compiles the default configuration's program in about two thirds of the time (CPU
-seconds: 21 → 13.5, measured with ``benchmarks/compile_time.py``'s program) and runs it about
-three times slower (0.09 → 0.3 s), a good trade for a program that runs once. Results are the
-same to round-off."""
+level 0. On the default configuration's program (2 cores, quiet machine) it compiles in
+7.7–8.6 s instead of 11.4 s (CPU seconds 8.4–9.4 instead of 15.1) and runs in 0.11 s instead of
+0.07 s: a good trade for a program that runs once. Results are the same to round-off
+(``tests/test_programs.py``)."""
 
 
 def _run(exported, args, compiler_options):

@@ -30,8 +30,10 @@ def test_shipped_program_of_the_default_configuration_is_current(default_setup):
 def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):
     """stored_report (an exported program, stored, then read back by a second call with other
     float values) against simulate() and summary() run directly on the same inputs: the same
-    computation, compiled as one program or as several (and the stored one with XLA's
-    ONE_SHOT options), so equal to round-off (1e-12 relative; measured ≤ 2e-16). A stale key (other
+    computation, but the stored program is compiled at LLVM level 0 (programs.ONE_SHOT) and
+    simulate at JAX's default level, which round differently (fused multiply-adds); the periodic
+    solve amplifies round-off of its 432-step cycle map by ‖(I − Φ)⁻¹‖, so equal to 1e-10
+    relative (measured ≤ 1.0e-12). A stale key (other
     sources) must not find the stored file."""
     monkeypatch.setattr(programs, "SHIPPED", tmp_path / "shipped")  # none shipped
     first, _, _ = stored_report(default_setup, RunOptions(), directory=tmp_path)
@@ -45,19 +47,20 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
     for key, value in want.items():
         if key == "periodicity_residual":
             # ‖F(x) − x‖/‖x‖ ≈ 5e-11 is itself near round-off: F is 432 collocation steps, whose
-            # rounding (≈ 432 × 2.2e-16 ≈ 1e-13 of ‖x‖) differs between the two compilations
-            assert got[key] == pytest.approx(value, rel=0, abs=1e-13), key
+            # rounding (≈ 432 × 2.2e-16 ≈ 1e-13 of ‖x‖, amplified by the cycle's response)
+            # differs between the two compilations (measured 1.2e-13)
+            assert got[key] == pytest.approx(value, rel=0, abs=1e-12), key
         elif isinstance(value, float) or (isinstance(value, list) and value
                                          and all(isinstance(v, float) for v in value)):
-            assert got[key] == pytest.approx(value, rel=1e-12, abs=1e-300), key
+            assert got[key] == pytest.approx(value, rel=1e-10, abs=1e-300), key
         elif key == "warnings":  # (code, message, value, limit): values to round-off
             assert [w["code"] for w in got[key]] == [w["code"] for w in value]
             for a, b in zip(got[key], value):
-                assert a["value"] == pytest.approx(b["value"], rel=1e-12), a["code"]
+                assert a["value"] == pytest.approx(b["value"], rel=1e-10), a["code"]
         else:
             assert got[key] == value, key
     np.testing.assert_allclose(series.deviation, run.series.deviation, rtol=0,
-                               atol=1e-12 * float(np.ptp(run.series.deviation)))
+                               atol=1e-10 * float(np.ptp(run.series.deviation)))
     assert float(stress.metrics["stress_max"]) * 1e-6 == pytest.approx(got["stress_max_mpa"])
     assert first["speed_rpm"] == pytest.approx(800.0) and got["speed_rpm"] == pytest.approx(600.0)
     name, _, args, static_key = report_program(slower, RunOptions())
