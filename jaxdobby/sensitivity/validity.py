@@ -13,10 +13,12 @@ in ``outputs.npz``), and :func:`sample_warnings` counts the rows that fail each 
   count ``arm_deflection`` or ``transmission_angle``: both need the arm's modal coordinates over
   the cycle, which its solver reduces to the extremes of three heald-frame signals inside the
   solve (:func:`jaxdobby.periodic.steady_state_metrics`), nor the stress checks;
-* the stress model (:data:`jaxdobby.sensitivity.stress.DOBBY_STRESS`) runs the whole cycle;
-  :func:`run_outputs` would give it every check of a single run, but its slow test hung (idle,
-  a LAPACK wait?) with them in, so it is not wired in yet: the stress model counts
-  ``not_converged``, ``deviation_of_stroke`` and ``fatigue_limit_exceeded`` from its outputs.
+* the stress model (:data:`jaxdobby.sensitivity.stress.DOBBY_STRESS`) runs the whole cycle, so
+  it could return every check of a single run (``validity.deflection_ratio``,
+  ``validity.reach_margin``, ``validity.sin_transmission``, ``validity.yield_ratio``: counted
+  below when a model returns them), but its slow test hung (idle, a LAPACK wait?) with
+  :func:`jaxdobby.validity.validity_arrays` in, so it is not wired in yet: the stress model
+  counts ``not_converged``, ``deviation_of_stroke`` and ``fatigue_limit_exceeded``.
 """
 
 from __future__ import annotations
@@ -54,21 +56,6 @@ def _count(speed, freqs) -> Array:
     cycle_hz = speed / (4.0 * jnp.pi)  # ω/(2π)/2: a cycle is two picks
     return jnp.sum(resonant(cycle_hz, jnp.min(freqs, axis=0), jnp.max(freqs, axis=0))).astype(
         float)
-
-
-def run_outputs(run, stress_max, tolerance: float) -> dict[str, Array]:
-    """The validity outputs of one whole run (a :class:`~jaxdobby.simulate.Simulation`; its
-    peak stress [Pa]) for the checks of :func:`jaxdobby.validity.warnings_of`."""
-    from ..validity import validity_arrays
-
-    arrays = validity_arrays(run)
-    return {"validity.converged": (run.periodicity <= tolerance).astype(float),
-            "validity.deflection_ratio": arrays["validity.deflection_ratio"],
-            "validity.reach_margin": arrays["validity.reach_margin"],
-            "validity.sin_transmission": arrays["validity.sin_transmission"],
-            "validity.resonances": _count(run.model.operating.speed,
-                                          arrays["validity.frequencies"]),
-            "validity.yield_ratio": stress_max / run.model.machine.arm.yield_strength}
 
 
 def sample_warnings(names, samples, outputs, stroke_mm: float) -> dict[str, dict]:
