@@ -31,7 +31,7 @@ not know) and only when ``XLA_FLAGS`` does not set it already."""
 
 def _configure_jax() -> None:
     """float64, XLA's CPU flags of :data:`CPU_XLA_FLAGS`, and a persistent compilation cache so
-    that later runs skip most compiling (``JAXDOBBY_CACHE_DIR`` to move it,
+    that later runs (and other call sites of the same computation) skip most compiling (``JAXDOBBY_CACHE_DIR`` to move it,
     ``JAXDOBBY_CACHE_DIR=off`` to disable it). Must run before JAX's first computation (XLA
     reads its flags once)."""
     flags = os.environ.get("XLA_FLAGS", "")
@@ -44,6 +44,10 @@ def _configure_jax() -> None:
     if cache is not None:
         jax.config.update("jax_compilation_cache_dir", str(cache))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        # no Python tracebacks in the programs' locations: the cache's key is the program's
+        # text, so a program traced from another call site (a script, a test, a notebook)
+        # would otherwise be compiled anew although it is the same computation
+        jax.config.update("jax_traceback_in_locations_limit", 0)
 
 
 def _cache_dir() -> Path | None:

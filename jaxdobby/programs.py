@@ -64,9 +64,15 @@ def _read(path: Path):
 
 
 def export_program(fn: Callable, args: Sequence):
-    """``jax.export`` of ``jax.jit(fn)`` for arguments shaped as ``args``."""
+    """``jax.export`` of ``jax.jit(fn)`` for arguments shaped as ``args``, without Python
+    tracebacks in its locations: the program is then the same whoever exports it (the command
+    line, a test, ``python -m jaxdobby.programs``), so XLA's persistent cache, whose key is the
+    program's text, compiles it once for all of them."""
+    from jax._src import config as jax_config
+
     specs = [jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a)) for a in args]
-    return jax.export.export(jax.jit(fn))(*specs)
+    with jax_config.traceback_in_locations_limit(0):
+        return jax.export.export(jax.jit(fn))(*specs)
 
 
 def write_program(exported, path: Path) -> None:
