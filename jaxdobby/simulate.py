@@ -392,15 +392,23 @@ def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, 
         options: :class:`~jaxdobby.config.RunOptions` (method, steps).
         directory: where to store and look for programs; None: only the shipped ones.
     """
-    from .programs import ONE_SHOT, call_stored
     from .stress.cycle import stress_of_arrays
 
-    name, fn, args, static_key = report_program(setup, options)
-    arrays = jax.device_get(call_stored(name, fn, args, static_key=static_key,
-                                        directory=directory, compiler_options=ONE_SHOT))
+    arrays = stored_report_arrays(setup, options, directory=directory)
     series = Timeseries(**{k.removeprefix("series."): v for k, v in arrays.items()
                            if k.startswith("series.")})
     return summary_of(arrays, setup.machine), series, stress_of_arrays(arrays)
+
+
+def stored_report_arrays(setup, options, *, directory=None) -> dict[str, np.ndarray]:
+    """The flat report arrays (:func:`report_arrays`, NumPy) behind :func:`stored_report`, from
+    the same stored program compiled with the same options (arguments as there): callers that
+    need the raw arrays share the command line's compiled program."""
+    from .programs import ONE_SHOT, call_stored
+
+    name, fn, args, static_key = report_program(setup, options)
+    return jax.device_get(call_stored(name, fn, args, static_key=static_key,
+                                      directory=directory, compiler_options=ONE_SHOT))
 
 
 def report_program(setup, options) -> tuple:

@@ -60,9 +60,8 @@ def test_validity_warnings_name_the_rows_a_single_run_flags(small_run):
     from jaxdobby.cli import _cache_dir
     from jaxdobby.config import RunOptions
     from jaxdobby.parameters import Setup
-    from jaxdobby.programs import call_stored
     from jaxdobby.sensitivity.dobby import setup_of_row
-    from jaxdobby.simulate import report_program
+    from jaxdobby.simulate import stored_report_arrays
     from jaxdobby.validity import warnings_of
 
     data = json.loads((small_run.out / "indices.json").read_text())
@@ -76,8 +75,7 @@ def test_validity_warnings_name_the_rows_a_single_run_flags(small_run):
     for row in flagged + fastest:
         setup, _ = setup_of_row(Setup(), small_run.space.names, small_run.space.si_scales,
                                 samples[row])
-        name, fn, args, key = report_program(setup, RunOptions())
-        arrays = call_stored(name, fn, args, static_key=key, directory=_cache_dir() / "programs")
+        arrays = stored_report_arrays(setup, RunOptions(), directory=_cache_dir() / "programs")
         codes = {w["code"] for w in warnings_of({k: np.asarray(v) for k, v in arrays.items()})}
         for code in ("deviation_of_stroke", "resonance"):
             assert (code in codes) == (row in warned.get(code, ())), (row, code, codes)

@@ -22,8 +22,7 @@ from jaxdobby.cli import _cache_dir, main
 from jaxdobby.config import RunOptions
 from jaxdobby.dobby import LINK, build_model, rigid_joint_position
 from jaxdobby.parameters import SPEED_RANGE, Setup, apply
-from jaxdobby.programs import call_stored
-from jaxdobby.simulate import report_program, simulate, summary, summary_of
+from jaxdobby.simulate import simulate, stored_report_arrays, summary, summary_of
 from jaxdobby.sensitivity.validity import sample_resonances, sample_warnings
 from jaxdobby.validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, RESONANCE_BAND, failure,
                                tally, tally_lines, warnings_of)
@@ -32,8 +31,7 @@ from jaxdobby.validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, RESONANCE_BAND
 def _report(setup):
     """Report arrays of ``setup`` through the command line's stored program (shared with the
     command-line tests: no tracing of the dynamics once stored; any float values)."""
-    name, fn, args, key = report_program(setup, RunOptions())
-    arrays = call_stored(name, fn, args, static_key=key, directory=_cache_dir() / "programs")
+    arrays = stored_report_arrays(setup, RunOptions(), directory=_cache_dir() / "programs")
     return {k: np.asarray(v) for k, v in arrays.items()}
 
 
