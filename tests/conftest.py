@@ -1,6 +1,7 @@
 """Test configuration: float64 on, as every jaxdobby user is told to do (see README)."""
 
 import jax
+import pytest
 
 jax.config.update("jax_enable_x64", True)
 
@@ -15,3 +16,20 @@ os.environ.setdefault("JAXDOBBY_CACHE_DIR",
 from jaxdobby.command_line import _configure_jax  # noqa: E402
 
 _configure_jax()  # before anything compiles: the persistent cache is set up at first use
+
+
+# Test files that compile the same programs run in one pytest-xdist worker (``--dist loadgroup``
+# in pyproject.toml): the first compiles, the others read the persistent cache. Every other file
+# is its own group (as ``--dist loadfile``), so module fixtures are computed once.
+SHARED_PROGRAMS = {
+    # the command line's report program of the default configuration (jit(call), ~10 s)
+    "test_cli.py": "report", "test_programs.py": "report", "test_validity.py": "report",
+    "test_robustness.py": "report",
+}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        name = item.path.name
+        item.add_marker(pytest.mark.xdist_group(SHARED_PROGRAMS.get(name, name)))
