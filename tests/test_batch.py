@@ -210,39 +210,25 @@ def test_two_newton_iterations_per_step_converge_the_cycle():
     np.testing.assert_allclose(got[:, 0], got[:, 1], rtol=1e-6, atol=0)
 
 
-def test_vmap_equals_single_samples_and_failures_are_flagged():
-    """Two ordinary samples and one far outside any loom's range: a 2 mm arm at 3000 r/min
-    (frame-on-arm mode ~62 Hz by the √t scaling of the 107 Hz one, the cycle at 25 Hz; its
-    solve does not give a finite periodic cycle). That sample is flagged (ok False), nothing
-    raises, and the other lanes are those of single runs: lanes are independent, but XLA may
-    order the sums of batched contractions differently (measured 4e-14 relative), so 1e-10."""
-    rows = jnp.array([[800 * RPM, 690.0, 0.140, 0.006],
-                      [1200 * RPM, 345.0, 0.080, 0.008],
-                      [3000 * RPM, 690.0, 0.140, 0.002]])
-    batched = jax.jit(jax.vmap(lambda r: steady_state_metrics(setup_at(r))))(rows)
-    single = jax.jit(lambda r: steady_state_metrics(setup_at(r)))
-    for i in range(2):
-        one = single(rows[i])
-        for name in METRICS:
-            assert float(batched[name][i]) == pytest.approx(float(one[name]), rel=1e-10)
-    assert [bool(v) for v in batched["ok"]] == [True, True, False]
-
-
-def test_batch_rounds_give_every_lane_its_own_cycles(monkeypatch):
+def test_vmap_equals_single_samples_and_failures_are_flagged(monkeypatch):
     """The batched chord iteration integrates only pending lanes, ROUND_WIDTH of them per round
-    (jaxdobby.periodic.steady._settle; 3 here, so that a round takes part of the 8 lanes): each
+    (jaxdobby.periodic.steady._settle; 3 here, so that a round takes part of the 9 lanes): each
     lane must get the cycle count, the flag and the metrics it gets alone (the per-sample while
     loop, run by lax.map, which does not batch). Eight random rows of the default box on a
     coarse grid (144 steps, cheap) need between 3 and 7 cycles, so lanes finish in different
-    rounds and some hit max_passes; agreement to 1e-10 relative as for vmap above (measured
-    6e-12: the lanes' arithmetic is the same, XLA's vectorisation of it differs)."""
+    rounds and some hit max_passes. A ninth row is far outside any loom's range: a 2 mm arm at
+    3000 r/min (frame-on-arm mode ~62 Hz by the √t scaling of the 107 Hz one, the cycle at
+    25 Hz; its solve does not give a finite periodic cycle): it is flagged (ok False), nothing
+    raises, and the other lanes are unaffected. Lanes are independent, but XLA may order the
+    sums of batched contractions differently (measured 6e-12 relative), so 1e-10."""
     from jaxdobby.periodic import steady
 
     monkeypatch.setattr(steady, "ROUND_WIDTH", 3)
     rng = np.random.default_rng(1)
     lo = np.array([400 * RPM, 345.0, 0.080, 0.006])
     hi = np.array([1200 * RPM, 1035.0, 0.140, 0.008])
-    rows = jnp.asarray(lo + (hi - lo) * rng.random((8, 4)))
+    far_out = np.array([[3000 * RPM, 690.0, 0.140, 0.002]])
+    rows = jnp.asarray(np.concatenate([lo + (hi - lo) * rng.random((8, 4)), far_out]))
 
     def one(r):
         return steady_state_metrics(setup_at(r), steps=144)
@@ -253,8 +239,10 @@ def test_batch_rounds_give_every_lane_its_own_cycles(monkeypatch):
     assert len(set(cycles.tolist())) >= 3, cycles  # lanes finish in different rounds
     assert cycles.tolist() == np.asarray(alone["cycles"]).tolist()
     assert np.asarray(batched["ok"]).tolist() == np.asarray(alone["ok"]).tolist()
+    assert not bool(batched["ok"][-1]) and np.sum(np.asarray(batched["ok"])) >= 4
     for name in METRICS:
-        np.testing.assert_allclose(batched[name], alone[name], rtol=1e-10, err_msg=name)
+        np.testing.assert_allclose(batched[name][:-1], alone[name][:-1], rtol=1e-10,
+                                   err_msg=name)
 
 
 @pytest.mark.slow
