@@ -11,9 +11,18 @@ each sample row runs the full steady-state cycle of :func:`jaxdobby.simulate.sim
 to ``deviation_pp_mm`` and ``acceleration_amp_m_s2``. It is slower than the reduced-in-solve
 batch evaluator of the default model (a dense cycle and 1729 × 100 stresses per sample, ~1.5 MB
 of intermediate arrays per row: ``--chunk-size 128`` keeps a chunk under 0.2 GB).
+
+The samples of a chunk run one after another (``jax.custom_batching.sequential_vmap``), not
+vectorised: a sample's whole computation (assembly, ``eigh``, the collocation cycle, the dense
+output) holds LAPACK calls, and jaxlib splits a batched LAPACK call over the CPU's intra-op
+threads and blocks one of them, so two of them side by side can wait on each other for ever on
+2 cores (see :func:`jaxdobby.periodic.steady.prepare`), and ``jaxdobby sobol`` runs one device
+per core side by side. (Measured on the slow test's 48 samples, 1 device: 19 s cold either way.)
 """
 
 from __future__ import annotations
+
+import jax
 
 from ..periodic import DEFAULT_STEPS
 from ..parameters import Setup
@@ -32,6 +41,7 @@ def dobby_stress_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
         start = Setup() if base is None else base
         check_strokes(space, start)
 
+        @jax.custom_batching.sequential_vmap
         def model(x):
             setup, ok = setup_of_row(start, names, scales, x)
             run = _simulate(setup.machine, setup.operating, None, method="collocation",
