@@ -17,14 +17,22 @@ from jaxdobby.command_line import _configure_jax  # noqa: E402
 
 _configure_jax()  # before anything compiles: the persistent cache is set up at first use
 
+# The notebooks' kernels (tests/test_notebooks.py) read the same cache with the same settings
+# (JAX reads these at import), so a program a test compiled is not compiled again there.
+if os.environ["JAXDOBBY_CACHE_DIR"].lower() != "off":
+    os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.environ["JAXDOBBY_CACHE_DIR"])
+    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
+    os.environ.setdefault("JAX_TRACEBACK_IN_LOCATIONS_LIMIT", "0")
+
 
 # Test files that compile the same programs run in one pytest-xdist worker (``--dist loadgroup``
 # in pyproject.toml): the first compiles, the others read the persistent cache. Every other file
 # is its own group (as ``--dist loadfile``), so module fixtures are computed once.
 SHARED_PROGRAMS = {
-    # the command line's report program of the default configuration (jit(call), ~10 s)
+    # the command line's report program of the default configuration (jit(call), ~10 s), and
+    # simulate()'s default program with the stress recovery (test_programs, notebook 02)
     "test_cli.py": "report", "test_programs.py": "report", "test_validity.py": "report",
-    "test_robustness.py": "report",
+    "test_robustness.py": "report", "test_notebooks.py": "report",
 }
 
 

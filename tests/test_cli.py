@@ -117,9 +117,14 @@ def test_config_file_and_flags_override(capsys, tmp_path):
     assert code == 0
     from_file = json.loads(out)
     assert from_file["stroke_mm"] == pytest.approx(115, abs=1e-6)
-    # same setup as test_every_flag: the same numbers
-    code, out, _ = run_cli(capsys, "simulate", "--config", str(cfg), "--speed", "1000", "--json")
-    assert json.loads(out)["speed_rpm"] == pytest.approx(1000)
+    # same setup as test_every_flag: the same numbers. A flag overrides the file (the warp
+    # force: a float of the same program; a new speed would change the RK4 step count of the
+    # one-way model and compile another program for the same claim)
+    code, out, _ = run_cli(capsys, "simulate", "--config", str(cfg), "--warp-force", "900",
+                           "--json")
+    overridden = json.loads(out)
+    assert overridden["warp_force_n"] == pytest.approx(900)
+    assert overridden["speed_rpm"] == pytest.approx(900)
 
 
 @pytest.mark.parametrize("args, field", [
