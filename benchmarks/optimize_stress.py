@@ -27,8 +27,9 @@ from the designs in the JSON.
 Run:  python benchmarks/optimize_stress.py [--out benchmarks/results] [--iterations 30]
 
 The committed results: ``--only mass --iterations 100``, then ``--only fatigue
---fatigue-floors 1.5 2 --iterations 30`` (about 20 minutes of compiling per floor on 2 shared
-cores, then a few seconds per iteration).
+--fatigue-floors 1.5 2 --iterations 30`` and ``--fatigue-floors 1.75`` (17–27 minutes of
+compiling per floor on 2 heavily shared cores; 1.75 took 4.3 min in all on a quieter machine,
+then a few seconds per iteration).
 """
 
 from __future__ import annotations
