@@ -194,6 +194,7 @@ def _scipy_one(row, rtol_scale: float = 1.0) -> dict:
 
 
 def _ready(_):
+    time.sleep(0.05)  # hold the worker a moment, so that the others get tasks too
     return os.getpid()
 
 
@@ -214,7 +215,11 @@ def scipy_pool(rows, options: dict, processes: int = 2) -> dict:
 
     ctx = multiprocessing.get_context("spawn")
     with ctx.Pool(processes, initializer=_scipy_init, initargs=(options,)) as pool:
-        pids = set(pool.map(_ready, range(4 * processes), chunksize=1))
+        # wait until every worker has run its initializer (compiling the model build), so that
+        # the timing starts with the whole pool ready
+        pids, deadline = set(), time.perf_counter() + 300.0
+        while len(pids) < processes and time.perf_counter() < deadline:
+            pids |= set(pool.map(_ready, range(4 * processes), chunksize=1))
         t0 = time.perf_counter()
         runs = pool.map(_scipy_one, list(rows), chunksize=1)
         wall = time.perf_counter() - t0

@@ -1,7 +1,7 @@
 """Model-form error budget of jaxdobby against the co-rotational reference (issue 21).
 
-    PYTHONPATH=. python3 benchmarks/model_form_budget.py            # 400, 800, 1000, 1200 r/min
-    PYTHONPATH=. python3 benchmarks/model_form_budget.py --quick    # 800 r/min, few variants
+    python3 benchmarks/model_form_budget.py            # 400, 800, 1000, 1200 r/min
+    python3 benchmarks/model_form_budget.py --quick    # 800 r/min, few variants
     ... --only "VARIANT" ...; ... --jaxdobby-only; ... --merge A.json B.json   # in pieces
     ... --figure-only                                   # redraw the figure, print docs' table
 
