@@ -68,10 +68,15 @@ def export_program(fn: Callable, args: Sequence):
     tracebacks in its locations: the program is then the same whoever exports it (the command
     line, a test, ``python -m jaxdobby.programs``), so XLA's persistent cache, whose key is the
     program's text, compiles it once for all of them."""
-    from jax._src import config as jax_config
+    import contextlib
 
+    try:  # the context-manager form of the jax_traceback_in_locations_limit option
+        from jax._src.config import traceback_in_locations_limit
+        no_tracebacks = traceback_in_locations_limit(0)
+    except (ImportError, TypeError):  # another JAX: the program keeps its locations
+        no_tracebacks = contextlib.nullcontext()
     specs = [jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a)) for a in args]
-    with jax_config.traceback_in_locations_limit(0):
+    with no_tracebacks:
         return jax.export.export(jax.jit(fn))(*specs)
 
 
