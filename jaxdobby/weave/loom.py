@@ -57,8 +57,13 @@ def frame_run(machine: Machine, operating: OperatingPoint, plan, stroke_m):
     """The :class:`~jaxdobby.simulate.Simulation` of one frame alone: its lift sequence (P,)
     and its stroke [m] (for ``jaxdobby loom --animate``, which needs the whole run)."""
     s = joint_positions(machine, [stroke_m])[0]
-    return simulate(machine.with_link11_arc_length(float(s)), operating,
-                    lift_plan=np.asarray(plan, dtype=float))
+    return _simulate_frame(machine, operating, np.asarray(plan, dtype=float), float(s))
+
+
+def _simulate_frame(machine: Machine, operating: OperatingPoint, plan, joint_position):
+    """One frame's run: its lift sequence (P,) on the machine with the link-11 joint at
+    ``joint_position`` (arc length on the slot [m]; traced in the batch, concrete alone)."""
+    return simulate(machine.with_link11_arc_length(joint_position), operating, lift_plan=plan)
 
 
 def _row(run) -> dict:
@@ -70,7 +75,7 @@ def _row(run) -> dict:
 @eqx.filter_jit
 def _batch(machine, operating, plans, positions):
     def one(plan, s):
-        return _row(simulate(machine.with_link11_arc_length(s), operating, lift_plan=plan))
+        return _row(_simulate_frame(machine, operating, plan, s))
 
     return jax.vmap(one)(plans, positions)
 
@@ -98,8 +103,7 @@ def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, st
             progress(min(start + CHUNK, len(moving)), len(moving))
     for i in range(frames):
         if i not in moving:  # static: the concrete plan takes simulate's equilibrium path
-            run = simulate(machine.with_link11_arc_length(float(positions[i])), operating,
-                           lift_plan=plan[:, i])
+            run = _simulate_frame(machine, operating, plan[:, i], float(positions[i]))
             rows[i] = jax.tree.map(np.asarray, _row(run))
         rows[i].update(frame=i + 1, stroke=float(np.asarray(strokes_m)[i]),
                        lift_plan=plan_text(plan[:, i]), static=i not in moving)
