@@ -27,9 +27,9 @@ from .command_line import (  # noqa: F401  (re-exported: the tests and scripts u
     EXIT_BAD_INPUT,
     EXIT_SOLVER_FAILURE,
     _add_model_arguments,
-    _cache_dir,
     _configure_jax,
     _status,
+    programs_dir,
     setup_from_args,
 )
 from .errors import InputError
@@ -48,9 +48,7 @@ def _simulate(ns: argparse.Namespace) -> int:
         parse_plan(ns.lift_plan, field="--lift-plan")
         options.lift_plan = ns.lift_plan.strip()
     _status("solving the periodic steady state (a first run of a configuration compiles it)...")
-    cache = _cache_dir()
-    result, series, stress = stored_report(
-        setup, options, directory=None if cache is None else cache / "programs")
+    result, series, stress = stored_report(setup, options, directory=programs_dir())
     reason = failure(result)
     if reason is not None:
         print(f"jaxdobby simulate: {reason}", file=sys.stderr)

@@ -31,9 +31,9 @@ not know) and only when ``XLA_FLAGS`` does not set it already."""
 
 def _configure_jax() -> None:
     """float64, XLA's CPU flags of :data:`CPU_XLA_FLAGS`, and a persistent compilation cache so
-    that later runs (and other call sites of the same computation) skip most compiling (``JAXDOBBY_CACHE_DIR`` to move it,
-    ``JAXDOBBY_CACHE_DIR=off`` to disable it). Must run before JAX's first computation (XLA
-    reads its flags once)."""
+    that later runs (and other call sites of the same computation) skip most compiling
+    (``JAXDOBBY_CACHE_DIR`` to move it, ``JAXDOBBY_CACHE_DIR=off`` to disable it). Must run
+    before JAX's first computation (XLA reads its flags once)."""
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_cpu_use_fusion_emitters" not in flags and _jaxlib_at_least(0, 7):
         os.environ["XLA_FLAGS"] = f"{flags} {CPU_XLA_FLAGS}".strip()
@@ -55,6 +55,13 @@ def _cache_dir() -> Path | None:
     programs of :mod:`jaxdobby.programs` are kept in its ``programs`` folder."""
     cache = os.environ.get("JAXDOBBY_CACHE_DIR", str(Path.home() / ".cache" / "jaxdobby" / "xla"))
     return None if cache.lower() == "off" else Path(cache)
+
+
+def programs_dir() -> Path | None:
+    """Where the command line stores its traced programs (:mod:`jaxdobby.programs`): the
+    ``programs`` folder of :func:`_cache_dir`; None when the cache is off."""
+    cache = _cache_dir()
+    return None if cache is None else cache / "programs"
 
 
 def _jaxlib_at_least(*version: int) -> bool:

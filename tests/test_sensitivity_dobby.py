@@ -57,7 +57,7 @@ def test_validity_warnings_name_the_rows_a_single_run_flags(small_run):
     # those whose machine simulate warns about (the same resonance condition on the same
     # frequencies; the deviation from another solver, equal to ~1e-6): every flagged row and
     # the two fastest unflagged ones, re-run through the command line's stored program
-    from jaxdobby.cli import _cache_dir
+    from jaxdobby.cli import programs_dir
     from jaxdobby.config import RunOptions
     from jaxdobby.parameters import Setup
     from jaxdobby.sensitivity.dobby import setup_of_row
@@ -75,7 +75,7 @@ def test_validity_warnings_name_the_rows_a_single_run_flags(small_run):
     for row in flagged + fastest:
         setup, _ = setup_of_row(Setup(), small_run.space.names, small_run.space.si_scales,
                                 samples[row])
-        arrays = stored_report_arrays(setup, RunOptions(), directory=_cache_dir() / "programs")
+        arrays = stored_report_arrays(setup, RunOptions(), directory=programs_dir())
         codes = {w["code"] for w in warnings_of({k: np.asarray(v) for k, v in arrays.items()})}
         for code in ("deviation_of_stroke", "resonance"):
             assert (code in codes) == (row in warned.get(code, ())), (row, code, codes)

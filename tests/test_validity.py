@@ -18,7 +18,7 @@ import pytest
 
 import equinox as eqx
 
-from jaxdobby.cli import _cache_dir, main
+from jaxdobby.cli import main, programs_dir
 from jaxdobby.config import RunOptions
 from jaxdobby.dobby import LINK, build_model, rigid_joint_position
 from jaxdobby.parameters import SPEED_RANGE, Setup, apply
@@ -31,7 +31,7 @@ from jaxdobby.validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, RESONANCE_BAND
 def _report(setup):
     """Report arrays of ``setup`` through the command line's stored program (shared with the
     command-line tests: no tracing of the dynamics once stored; any float values)."""
-    arrays = stored_report_arrays(setup, RunOptions(), directory=_cache_dir() / "programs")
+    arrays = stored_report_arrays(setup, RunOptions(), directory=programs_dir())
     return {k: np.asarray(v) for k, v in arrays.items()}
 
 
@@ -240,7 +240,7 @@ def test_optimize_checks_its_designs_as_simulate_does(capsys):
 
     summary = {"per_speed": [{"speed_rpm": 800.0, "start": {}, "optimised": {}}]}
     design_warnings(summary, Setup(), apply(Setup(), {"thickness": 1e-3}),
-                    speeds_from_rpm([800.0]), 432, directory=_cache_dir() / "programs")
+                    speeds_from_rpm([800.0]), 432, directory=programs_dir())
     code, out, _ = run_cli(capsys, "simulate", "--thickness", "1", "--json")
     expected = json.loads(out)["warnings"]
     got = summary["per_speed"][0]["optimised"]["warnings"]

@@ -70,7 +70,7 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
     from .fit import identify
     from .measurement import check_length, read_csv
     from .model import parameterisation
-    from ..command_line import _cache_dir
+    from ..command_line import programs_dir
     from ..validity import setup_warnings
     from .report import summary, text, write
 
@@ -89,9 +89,7 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
                       progress=lambda line: print(line, file=sys.stderr, flush=True))
     print("checking the identified machine against the model's validity limits...",
           file=sys.stderr, flush=True)
-    cache = _cache_dir()
-    summ = summary(result, setup_warnings(result.setup, options, directory=None if cache is None
-                                          else cache / "programs"))
+    summ = summary(result, setup_warnings(result.setup, options, directory=programs_dir()))
     if ns.out:
         paths = write(ns.out, meas, result, summ, options, figures=not ns.no_figures)
         print(f"wrote {len(paths)} files to {ns.out}", file=sys.stderr)

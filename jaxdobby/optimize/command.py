@@ -298,14 +298,13 @@ def _check_start(space, jnp) -> None:
 
 def run(ns: argparse.Namespace) -> int:
     """Run ``jaxdobby optimize``; returns the exit status (0, or 1 if not converged)."""
-    from ..command_line import _cache_dir
+    from ..command_line import programs_dir
     from .output import figures, write_outputs
     from .study import run_study
 
     study = build_study(ns)
-    cache = _cache_dir()
     outcome = run_study(study, progress=lambda line: print(line, file=sys.stderr, flush=True),
-                        programs=None if cache is None else cache / "programs")
+                        programs=programs_dir())
     if ns.out:
         bounds = {f"{k}_{unit.replace(' ', '_')}": tuple(v) for (k, v), (unit, _) in
                   zip(outcome.summary["bounds"].items(), study.space.units())}
