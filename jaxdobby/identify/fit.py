@@ -11,10 +11,11 @@ split: every outer iteration solves the steady cycle and its exact derivative on
 grid for each start (:func:`~jaxdobby.identify.model.cycle_grids`, forward mode through the
 implicit-function derivative of the periodic state); the step is then the minimiser of the
 residuals with the grid linearised in z, nonlinear in φ and b, damped by μ‖δ‖² — solved by
-Gauss–Newton with a step-length search (:func:`~jaxdobby.identify.inner.gauss_newton`; cheap: interpolation only, and on
-the residuals compressed from the m samples to the model's 2K Fourier coefficients by one QR
-factorisation of the interpolation matrix, :func:`~jaxdobby.identify.inner.compressed`). A start accepts its step when
-the true cost falls (μ/3), else it shortens it (μ·10) (Moré, "The Levenberg–Marquardt
+Gauss–Newton with a step-length search (:func:`~jaxdobby.identify.inner.gauss_newton`; cheap:
+interpolation only, and on the residuals compressed from the m samples to the model's 2K
+Fourier coefficients by one QR factorisation of the interpolation matrix,
+:func:`~jaxdobby.identify.inner.compressed`). A start accepts its step when the true cost falls
+(μ/3), else it shortens it (μ·10) (Moré, "The Levenberg–Marquardt
 algorithm", 1978). At convergence the Jacobian of the linearised residuals at δ = 0 is the exact
 Jacobian of r in (z, φ, b).
 
@@ -131,19 +132,19 @@ class _Lanes:
 
     def inner(self, coef, dcoef, z, mu, v0, scan=False):
         out = inner(coef, dcoef, jnp.asarray(z), jnp.asarray(mu), self.lower, self.upper,
-                     jnp.asarray(v0), jnp.asarray(scan), self.data)
+                    jnp.asarray(v0), jnp.asarray(scan), self.data)
         return tuple(np.asarray(a) for a in out)
 
     def full(self, v0):
         out = full(self.coef, self.dcoef, jnp.asarray(self.z), self.lower, self.upper,
-                    jnp.asarray(v0), self.data)
+                   jnp.asarray(v0), self.data)
         return tuple(np.asarray(a) for a in out)
 
 
 def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
     """Outer Levenberg–Marquardt on z (exact Jacobian of the steady cycle), every lane at once:
-    the inner linearised step (with φ and b) from :func:`~jaxdobby.identify.inner.inner`; a lane accepts its step when
-    the true cost falls (then μ/3), else μ·10 and a shorter step. Stops when every lane's step
+    the inner linearised step (with φ and b) from :func:`~jaxdobby.identify.inner.inner`; a
+    lane accepts its step when the true cost falls (then μ/3), else μ·10 and a shorter step. Stops when every lane's step
     is below :data:`STEP_TOLERANCE` in z or the cost falls by less than
     :data:`COST_TOLERANCE` relative (or μ has grown past 1e8: no descent left)."""
     p = len(lanes.par.names)
@@ -152,9 +153,11 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
     v0 = np.zeros((n_lanes, p + 2))
     # φ and b at the starting z: the phase scan, then the fit of (φ, b) alone (δ pinned by μ)
     _, v, _ = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, np.full(n_lanes, 1e12), v0,
-                                scan=True)
+                          scan=True)
     v0[:, p:] = v[:, p:]
-    cost, step, ok = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
+    # (the inner solve's own success flag is not needed: a step is kept only if the true cost
+    # falls)
+    cost, step, _ = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
     done = np.zeros(n_lanes, bool)
     for iteration in range(max_iterations):
         if progress is not None:
@@ -163,8 +166,7 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
         z_try = np.clip(lanes.z + step[:, :p], lanes.par.lower, lanes.par.upper)
         coef_try, dcoef_try = lanes.grids(z_try)
         v_try = np.concatenate([np.zeros((n_lanes, p)), step[:, p:]], axis=1)
-        cost_try, step_try, ok_try = lanes.inner(coef_try, dcoef_try, z_try, mu / 3,
-                                                       v_try)
+        cost_try, step_try, _ = lanes.inner(coef_try, dcoef_try, z_try, mu / 3, v_try)
         accept = np.isfinite(cost_try) & (cost_try <= cost) & ~done
         small = ((np.max(np.abs(z_try - lanes.z), axis=1) < STEP_TOLERANCE)
                  | (cost - cost_try <= COST_TOLERANCE * cost))
@@ -177,10 +179,9 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
         mu = np.where(accept, mu / 3, mu * 10)
         if done.all():
             break
-        _, step_rej, ok_rej = (lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
-                               if not accept.all() else (None, step_try, ok_try))
+        step_rej = (lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)[1]
+                    if not accept.all() else step_try)
         step = np.where(accept[:, None], step_try, step_rej)
-        ok = np.where(accept, ok_try, ok_rej)
     return cost, v0, done
 
 
@@ -221,7 +222,7 @@ def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | Non
     cost, v, done = _least_squares(lanes, max_iterations, progress)
     if len(meas.channels) == 2:  # reweight by each channel's residual RMS, refit every lane
         best = int(np.argmin(np.where(np.isfinite(cost), cost, np.inf)))
-        r = _final(lanes, v)[1][best]
+        r = _final(lanes, v)[0][best]
         n, size = meas.time.size, lanes.data.phase.size
         sigma = [float(np.sqrt(np.mean((r[c * size:c * size + n] * sigma[c]) ** 2))) or 1.0
                  for c in range(2)]
@@ -229,15 +230,14 @@ def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | Non
         cost, v, done = _least_squares(lanes, max_iterations, progress)
     cost = np.where(np.isfinite(cost), cost, np.inf)
     best = int(np.argmin(cost))
-    _, r, jac = _final(lanes, v)
+    r, jac = _final(lanes, v)
     u = np.concatenate([lanes.z[best], v[best, len(par.names):]])
     return summarise(setup, meas, par, u, r[best], jac[best], sigma, lanes.data.phase.size,
                      bool(done[best]) and bool(np.all(np.isfinite(u))), cost)
 
 
 def _final(lanes: _Lanes, v):
-    """(None, residuals, Jacobian in (z, φ, b)) of every lane at its current point."""
+    """(residuals, Jacobian in (z, φ, b)) of every lane at its current point."""
     p = len(lanes.par.names)
     v0 = np.concatenate([np.zeros((v.shape[0], p)), v[:, p:]], axis=1)
-    r, jac = lanes.full(v0)
-    return None, r, jac
+    return lanes.full(v0)

@@ -17,7 +17,8 @@ in ``outputs.npz``), and :func:`sample_warnings` counts the rows that fail each 
   it could return every check of a single run (``validity.deflection_ratio``,
   ``validity.reach_margin``, ``validity.sin_transmission``, ``validity.yield_ratio``: counted
   below when a model returns them), but its slow test hung (idle, a LAPACK wait?) with
-  :func:`jaxdobby.validity.validity_arrays` in, so it is not wired in yet: the stress model
+  :func:`jaxdobby.validity.validity_arrays` in, when its samples still ran vectorised (they
+  run one after another now; not tried again), so it is not wired in yet: the stress model
   counts ``not_converged``, ``deviation_of_stroke`` and ``fatigue_limit_exceeded``.
 """
 
@@ -33,6 +34,7 @@ from jax import Array
 
 from ..validity import (DEFLECTION_LIMIT, DEVIATION_LIMIT, TRANSMISSION_LIMIT, CODES,
                         phase_frequencies, resonant)
+
 
 def sample_resonances(setup) -> Array:
     """Number of resonant (cycle harmonic, mode) pairs of one sample's
