@@ -152,12 +152,9 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
     mu = np.full(n_lanes, 1e-3)
     v0 = np.zeros((n_lanes, p + 2))
     # φ and b at the starting z: the phase scan, then the fit of (φ, b) alone (δ pinned by μ)
-    _, v, _ = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, np.full(n_lanes, 1e12), v0,
-                          scan=True)
+    _, v = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, np.full(n_lanes, 1e12), v0, scan=True)
     v0[:, p:] = v[:, p:]
-    # (the inner solve's own success flag is not needed: a step is kept only if the true cost
-    # falls)
-    cost, step, _ = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
+    cost, step = lanes.inner(lanes.coef, lanes.dcoef, lanes.z, mu, v0)
     done = np.zeros(n_lanes, bool)
     for iteration in range(max_iterations):
         if progress is not None:
@@ -166,7 +163,7 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
         z_try = np.clip(lanes.z + step[:, :p], lanes.par.lower, lanes.par.upper)
         coef_try, dcoef_try = lanes.grids(z_try)
         v_try = np.concatenate([np.zeros((n_lanes, p)), step[:, p:]], axis=1)
-        cost_try, step_try, _ = lanes.inner(coef_try, dcoef_try, z_try, mu / 3, v_try)
+        cost_try, step_try = lanes.inner(coef_try, dcoef_try, z_try, mu / 3, v_try)
         accept = np.isfinite(cost_try) & (cost_try <= cost) & ~done
         small = ((np.max(np.abs(z_try - lanes.z), axis=1) < STEP_TOLERANCE)
                  | (cost - cost_try <= COST_TOLERANCE * cost))

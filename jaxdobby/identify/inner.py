@@ -25,6 +25,8 @@ from .model import MM, harmonics
 BUCKET = 1024
 """Measured samples are padded (with zero weight) to a multiple of this, so that traces of
 similar length share one compiled program."""
+
+
 class Problem(eqx.Module):
     """The measured data, padded with zero weights to a multiple of :data:`BUCKET` samples
     (arrays, so that new values do not recompile), and its compressed form.
@@ -47,6 +49,8 @@ class Problem(eqx.Module):
 
 
 def problem(meas: Measurement, period: float, sigma, n_coef: int) -> Problem:
+    """The :class:`Problem` of ``meas`` for a model of cycle ``period`` [s] with ``n_coef``
+    harmonics per channel, each channel weighted by 1/``sigma[c]`` (its units)."""
     n = meas.time.size
     size = BUCKET * math.ceil(n / BUCKET)
     measured = np.zeros((2, size))
@@ -173,7 +177,8 @@ def gauss_newton(fn, start, max_iterations=INNER_ITERATIONS):
 def inner(coef, dcoef, z, mu, lower, upper, v0, scan, data: Problem):
     """For each lane (vmapped): the cost ½‖r‖² at v0 (true cost: δ = 0 there), then the
     damped linearised step v = (δ, φ, b) by :func:`gauss_newton` from v0 (φ, b from
-    :func:`phase_scan` where ``scan``) and its success. On the compressed residuals
+    :func:`phase_scan` where ``scan``; the caller keeps a step only if the true cost falls, so
+    the solve's own convergence flag is not returned). On the compressed residuals
     (:func:`compressed_residuals`): 2·2K rows instead of 2·m."""
     def one(coef, dcoef, z, mu, v0):
         p = z.shape[0]
@@ -187,8 +192,8 @@ def inner(coef, dcoef, z, mu, lower, upper, v0, scan, data: Problem):
         damping = jnp.sqrt(mu) * jnp.linalg.norm(jac, axis=0)
         phase, offset = phase_scan(coef, data)
         start = jnp.where(scan, v0.at[p].set(phase).at[p + 1].set(offset), v0)
-        v, ok = gauss_newton(lambda v: fn(v, damping), start)
-        return 0.5 * (r0 @ r0 + data.rest), v, ok
+        v, _ = gauss_newton(lambda v: fn(v, damping), start)
+        return 0.5 * (r0 @ r0 + data.rest), v
 
     return jax.vmap(one)(coef, dcoef, z, mu, v0)
 
