@@ -18,11 +18,13 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
-ORDER = ("compile_time", "suite_time", "simulate", "batch", "gradient_cost", "gradient",
-         "sobol_throughput", "batch_profile")
+ORDER = ("compile_time", "suite_time", "suite_compiles", "simulate", "batch", "gradient_cost",
+         "gradient", "sobol_throughput", "batch_profile")
 TITLES = {"compile_time": "The first answer and compile time against modes (`compile_time.py`, "
                           "issue 19)",
           "suite_time": "The default test suite (`suite_time.py`, issue 19)",
+          "suite_compiles": "Where the suite's time goes: its compilations "
+                            "(`suite_compiles.py`, issue 19)",
           "simulate": "One default simulation (`bench_simulate.py`)",
           "batch": "Parameter batches (`bench_batch.py`)",
           "gradient_cost": "Cost of a design gradient in forward solves (`gradient_cost.py`, "
@@ -39,6 +41,7 @@ From the repository root, with float64 on (the scripts set it) and nothing else 
 ```sh
 python benchmarks/compile_time.py        # first jaxdobby simulate, compile time vs modes
 python benchmarks/suite_time.py          # the default test suite, empty caches
+python benchmarks/suite_compiles.py      # the suite's XLA compilations, by program and test
 python benchmarks/bench_simulate.py      # cold/warm simulate vs solve_ivp, work–precision
 python benchmarks/bench_batch.py         # 256 / 4096 / 65 536 samples, 1 and 2 devices
 python benchmarks/gradient_cost.py       # a design gradient's cost in forward solves
