@@ -212,7 +212,7 @@ def _save(model, rigid, x):
 
 
 def _simulate_impl(machine, operating, basis, lift_plan=None, *, method, steps, n_out, rtol,
-                   atol, tolerance, forward_mode):
+                   atol, tolerance, forward_mode, reverse_only=False):
     model = build_model(machine, operating, basis, lift_plan)
     k = model.n_modes
     x_rest = jnp.zeros(2 * k)
@@ -239,7 +239,7 @@ def _simulate_impl(machine, operating, basis, lift_plan=None, *, method, steps, 
         solved = jnp.all(jnp.isfinite(x0))
         num_steps = jnp.asarray(0)
     elif method == "collocation":
-        dense = steady_cycle(model, steps, tolerance=tolerance)
+        dense = steady_cycle(model, steps, tolerance=tolerance, reverse_only=reverse_only)
         shooting, x0, end, ts = dense.shooting, dense.shooting.state, dense.end, dense.time
         flexible = dense.outputs  # the rigid motion's outputs included
         motion = dense.motion

@@ -23,10 +23,13 @@ steps and the periodic state (implicit-function theorem at the shooting root). `
 stores the step residuals (a few hundred floats per step: megabytes). Both need the monodromy
 matrix at the periodic state for the implicit-function derivative (2k tangents through one
 cycle), and forward mode carries its tangents through the model's assembly and every
-collocation step as well. Measured on the default machine (2 CPU cores,
-``benchmarks/results/gradient.json``, two runs): one forward solve 0.056–0.067 s; forward mode
-0.44–0.60 s for one variable and 0.97 s for eight; reverse mode 0.36–0.39 s for eight. Reverse
-mode is the cheaper for any number of variables, so ``auto`` picks it
+collocation step as well. Reverse mode pulls the steady cycle and its periodic state back in
+one pullback of the recorded pass (``reverse_only`` of
+:func:`jaxdobby.periodic.dense.steady_cycle`). Measured on the default machine at 800 r/min
+(2 CPU cores, ``benchmarks/results/gradient_cost.json``, 2026-12-03): one forward solve
+0.032 s; for 7 and 8 variables forward mode 7.3 solves, reverse mode 3.1 and 3.2 (5.0 and
+5.1 with ``jax.lax.custom_root``'s derivative).
+Reverse mode is the cheaper for any number of variables, so ``auto`` picks it
 (:data:`FORWARD_MAX_VARIABLES` = 0).
 """
 
@@ -77,8 +80,11 @@ class Objective:
     acceleration_weight: float = 0.0
 
 
-def cycle_values(space: DesignSpace, u: Array, speed, steps: int) -> dict[str, Array]:
-    """Steady-state metrics of the design ``u`` at one speed [rad/s] (SI; differentiable).
+def cycle_values(space: DesignSpace, u: Array, speed, steps: int, reverse_only: bool = False
+                 ) -> dict[str, Array]:
+    """Steady-state metrics of the design ``u`` at one speed [rad/s] (SI; differentiable; in
+    reverse mode only, by the cheaper derivative of the steady cycle, with ``reverse_only``:
+    :func:`jaxdobby.periodic.dense.steady_cycle`).
 
     Keys: the surrogates ``deviation``, ``deviation_rms``, ``acceleration``; the true
     ``deviation_pp``, ``acceleration_pp``; ``converged`` (1.0 or 0.0); and the cycle's
@@ -87,7 +93,8 @@ def cycle_values(space: DesignSpace, u: Array, speed, steps: int) -> dict[str, A
     setup = space.setup(u)
     operating = dataclasses.replace(setup.operating, speed=speed)
     run = _simulate(setup.machine, operating, space.basis, method="collocation", steps=steps,
-                    n_out=0, rtol=0.0, atol=0.0, tolerance=1e-9, forward_mode=False)
+                    n_out=0, rtol=0.0, atol=0.0, tolerance=1e-9, forward_mode=False,
+                    reverse_only=reverse_only)
     s = run.series
     dev, acc = s.deviation, s.acceleration_flexible
     return {"deviation": smooth_peak_to_peak(dev, SHARPNESS), "deviation_rms": rms(dev[:-1]),
@@ -97,9 +104,10 @@ def cycle_values(space: DesignSpace, u: Array, speed, steps: int) -> dict[str, A
             "converged": run.converged.astype(float), "time": s.t, "deviation_series": dev}
 
 
-def batch_values(space: DesignSpace, u: Array, speeds: Array, steps: int) -> dict[str, Array]:
+def batch_values(space: DesignSpace, u: Array, speeds: Array, steps: int,
+                 reverse_only: bool = False) -> dict[str, Array]:
     """:func:`cycle_values` at every speed, as one vmapped batch (leading axis = speeds)."""
-    return jax.vmap(lambda w: cycle_values(space, u, w, steps))(speeds)
+    return jax.vmap(lambda w: cycle_values(space, u, w, steps, reverse_only))(speeds)
 
 
 def combine(objective: Objective, values: dict[str, Array], reference: dict[str, Array]) -> Array:
@@ -132,15 +140,15 @@ def _values_many(space, us, speeds, steps):
     return jax.vmap(lambda u: batch_values(space, u, speeds, steps))(us)
 
 
-def _objective(space, u, speeds, steps, objective, reference):
-    values = batch_values(space, u, speeds, steps)
+def _objective(space, u, speeds, steps, objective, reference, reverse_only=False):
+    values = batch_values(space, u, speeds, steps, reverse_only)
     return combine(objective, values, reference), values
 
 
 @eqx.filter_jit
 def _reverse(space, u, speeds, steps, objective, reference):
     return jax.value_and_grad(_objective, argnums=1, has_aux=True)(
-        space, u, speeds, steps, objective, reference)
+        space, u, speeds, steps, objective, reference, True)
 
 
 @eqx.filter_jit

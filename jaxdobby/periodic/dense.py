@@ -9,7 +9,8 @@ form) with
   linearised about the rigid motion, with their monodromy matrix as the chord matrix (as the
   batch evaluator, :mod:`jaxdobby.periodic.linear`), and the implicit-function derivative of
   :func:`jaxdobby.steady_state.attach_root_derivative` (so gradients through a run follow
-  dx₀/dp = (I − F_x)⁻¹ F_p, not the iterations);
+  dx₀/dp = (I − F_x)⁻¹ F_p, not the iterations; a cheaper reverse-mode-only form of the same
+  derivative for the optimiser, :func:`_steady_reverse`);
 * the steady cycle as the collocation polynomial (:func:`jaxdobby.periodic.collocation.dense_weights`)
   sampled ``per_step`` times per step, uniformly in time, plus the end point t = T.
 
@@ -147,8 +148,53 @@ def _replayed_jvp(primals, tangents):
     return run, d_run
 
 
+def _steady_outputs(cycle: Cycle, x: Array) -> tuple[Array, tuple[Array, Array, Array]]:
+    """(end state, trajectory) of the recorded pass of ``cycle`` from ``x``."""
+    run = _recorded_pass(cycle, x)
+    return run.end, run.trajectory
+
+
+@jax.custom_vjp
+def _steady_reverse(cycle: Cycle, root: Array, end: Array, trajectory):
+    """(``end``, ``trajectory``): the recorded pass of ``cycle`` from its periodic state
+    ``root``, computed already, with the reverse-mode derivative of the whole steady cycle
+    (the pass and the periodic state's implicit-function derivative) in one pullback of the
+    pass; see :func:`_steady_reverse_bwd`. Reverse mode only."""
+    return end, trajectory
+
+
+def _steady_reverse_fwd(cycle, root, end, trajectory):
+    return (end, trajectory), (cycle, root, end, trajectory)
+
+
+def _steady_reverse_bwd(res, cotangent):
+    """The pullback of R(p, x*(p)), R the recorded pass, x* = F(p, x*) its periodic state:
+
+        p̄ = R_pᵀ r̄ + F_pᵀ λ,   λ = (I − F_x)⁻ᵀ R_xᵀ r̄.
+
+    R_x (every output's derivative by the 2k start coordinates, F_x among them) is one
+    forward pass carrying 2k tangents; F = R.end, so both terms of p̄ are one pullback of the
+    pass with the cotangent r̄ + λ on its end state."""
+    cycle, root, end, trajectory = res
+    n = root.shape[0]
+    cols = jax.vmap(lambda v: jax.jvp(lambda x: _steady_outputs(cycle, x), (root,), (v,))[1])(
+        jnp.eye(n, dtype=root.dtype))
+    x_bar = sum(jnp.tensordot(c, b, axes=b.ndim)
+                for c, b in zip(jax.tree.leaves(cols), jax.tree.leaves(cotangent)))
+    monodromy = cols[0].T
+    lam = jnp.linalg.solve(jnp.eye(n, dtype=root.dtype) - monodromy.T, x_bar)
+    end_bar, traj_bar = cotangent
+    _, pullback = jax.vjp(lambda c: _steady_outputs(c, root), cycle)
+    (cycle_bar,) = pullback((end_bar + lam, traj_bar))
+    return (cycle_bar, jnp.zeros_like(root), jnp.zeros_like(end),
+            jax.tree.map(jnp.zeros_like, trajectory))
+
+
+_steady_reverse.defvjp(_steady_reverse_fwd, _steady_reverse_bwd)
+
+
 def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int = PER_STEP,
-                 max_iterations: int = 8) -> DenseCycle:
+                 max_iterations: int = 8, reverse_only: bool = False) -> DenseCycle:
     """Periodic steady cycle of ``model`` by collocation (see the module docstring).
 
     The chord iteration x ← x + (I − Φ)⁻¹(F(x) − x) starts from the periodic state of the
@@ -158,7 +204,15 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
     corrected state, is the recorded steady cycle. Every pass is the same recording pass, so
     the compiled program holds it once; the recorded cycle is differentiable through
     :func:`_replayed` and the implicit-function derivative of the periodic state
-    (:func:`jaxdobby.steady_state.attach_root_derivative`).
+    (:func:`jaxdobby.steady_state.attach_root_derivative`), in forward and reverse mode; with
+    ``reverse_only``, through :func:`_steady_reverse` (reverse mode only: ``jax.jacfwd`` raises),
+    which pulls the cotangents of the pass and of the periodic state back in one pullback of
+    the pass. The same derivative (to round-off: 1e-8 relative in
+    ``tests/test_optimize_studies.py``) at about half the cost: the design gradient of
+    ``jaxdobby optimize`` with 8 variables costs 3.2 forward solves against 5.1
+    (``benchmarks/gradient_cost.py``): ``jax.lax.custom_root`` and :func:`_replayed` linearise
+    the pass three times (the recorded cycle, F_p, F_x) and pull two of them back; here one
+    pass carries 2k tangents and one is pulled back.
 
     Args:
         model: the coupled model (two-way coupling).
@@ -166,6 +220,7 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
         tolerance: relative periodicity to stop the shooting at.
         per_step: output times per step (static).
         max_iterations: chord iterations at most before the recorded pass (static).
+        reverse_only: differentiable in reverse mode only, at less cost (static).
     """
     if model.machine.coupling != "two-way":
         raise ValueError("the collocation path solves the two-way coupled model; got coupling="
@@ -205,11 +260,15 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
 
     it = jax.lax.stop_gradient(iterate(cycle))
     converged_residual = jnp.where(it.previous > tolerance, it.residual, it.previous)
-    state = attach_root_derivative(lambda x: _recorded_pass(cycle, x).end, it.start)
+    if reverse_only:
+        state = it.start
+        end, (q, v, acc) = _steady_reverse(cycle, state, it.run.end, it.run.trajectory)
+    else:
+        state = attach_root_derivative(lambda x: _recorded_pass(cycle, x).end, it.start)
+        run = _replayed(cycle, state, it.run)
+        end, (q, v, acc) = run.end, run.trajectory
     shooting = ShootingResult(state=state, residual=converged_residual, iterations=it.passes,
                               converged=converged_residual <= tolerance)
-    run = _replayed(cycle, state, it.run)
-    q, v, acc = run.trajectory
     h = period / steps
     theta = np.arange(per_step) / per_step
     w1, w2 = (jnp.asarray(w) for w in dense_weights(theta))
@@ -224,9 +283,9 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
     frames = jax.tree.map(lambda a: a.reshape(-1), tables.frame)
     reach = jax.vmap(chain_reachable, in_axes=(None, 0, 0))(
         ds, frames, stage_q.reshape(-1, k) @ ds.rows.T)
-    q_all = jnp.concatenate([qs, run.end[None, :k]])
-    qdot_all = jnp.concatenate([vs, run.end[None, k:]])
+    q_all = jnp.concatenate([qs, end[None, :k]])
+    qdot_all = jnp.concatenate([vs, end[None, k:]])
     outputs, motion = outputs_at(arm, ds, out_rigid, out_tables, q_all, qdot_all)
     return DenseCycle(time=jnp.concatenate([t, period[None]]), q=q_all, qdot=qdot_all,
-                      shooting=shooting, end=run.end, reachable=jnp.all(reach),
+                      shooting=shooting, end=end, reachable=jnp.all(reach),
                       outputs=outputs, motion=motion)
