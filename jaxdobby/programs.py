@@ -14,9 +14,10 @@ JAX and jaxlib versions, the platform, and a fingerprint of jaxdobby's own sourc
 change of the code therefore makes a new key — a stale program is never used, only not found.
 
 Programs of the default configuration ship in the package (``jaxdobby/data/programs``, made by
-``python -m jaxdobby.programs``), so that even the first run with an empty cache skips tracing
-when the installed JAX is the one they were made with; ``tests/test_programs.py`` checks that
-they are current.
+``python -m jaxdobby.programs``): ``jaxdobby simulate``'s report and the per-device program of
+the default ``jaxdobby sobol`` study on a 2-core CPU (:mod:`jaxdobby.sensitivity.batch`), so
+that even the first run with an empty cache skips tracing when the installed JAX is the one
+they were made with; ``tests/test_programs.py`` checks that they are current.
 """
 
 from __future__ import annotations
@@ -49,9 +50,16 @@ def source_fingerprint() -> str:
     return digest.hexdigest()
 
 
+def _spec(a) -> jax.ShapeDtypeStruct:
+    """The shape and dtype of an array (or of a ``jax.ShapeDtypeStruct``, as it is)."""
+    if isinstance(a, jax.ShapeDtypeStruct):
+        return jax.ShapeDtypeStruct(a.shape, a.dtype)
+    return jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a))
+
+
 def program_key(name: str, static_key: str, args: Sequence) -> str:
     """The file name of a stored program (see the module docstring)."""
-    shapes = ";".join(f"{jnp.result_type(a)}{list(jnp.shape(a))}" for a in args)
+    shapes = ";".join(f"{s.dtype}{list(s.shape)}" for s in map(_spec, args))
     text = "\n".join([name, static_key, shapes, jax.default_backend(), source_fingerprint()])
     return f"{name}-{hashlib.sha256(text.encode()).hexdigest()[:24]}.jaxexport"
 
@@ -75,9 +83,8 @@ def export_program(fn: Callable, args: Sequence):
         no_tracebacks = traceback_in_locations_limit(0)
     except (ImportError, TypeError):  # another JAX: the program keeps its locations
         no_tracebacks = contextlib.nullcontext()
-    specs = [jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a)) for a in args]
     with no_tracebacks:
-        return jax.export.export(jax.jit(fn))(*specs)
+        return jax.export.export(jax.jit(fn))(*map(_spec, args))
 
 
 def write_program(exported, path: Path) -> None:
@@ -105,6 +112,27 @@ def _run(exported, args, compiler_options):
     return compiled(*args)
 
 
+def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
+                   directory: Path | None):
+    """The exported program of ``fn`` for arguments shaped as ``args`` (arrays or
+    ``jax.ShapeDtypeStruct``): read from ``directory`` or the shipped programs, or traced,
+    exported and written to ``directory`` (see the module docstring and :func:`call_stored`
+    for the arguments). Call it with ``exported.call`` (inside ``jax.jit``, ``jax.shard_map``
+    ...)."""
+    key = program_key(name, static_key, args)
+    places = ([directory / key] if directory is not None else []) + [SHIPPED / key]
+    for path in places:
+        if path.exists() and (exported := _read(path)) is not None:
+            return exported
+    exported = export_program(fn, args)
+    if directory is not None:
+        try:
+            write_program(exported, directory / key)
+        except OSError:  # a read-only cache only costs the next run the tracing
+            pass
+    return exported
+
+
 def call_stored(name: str, fn: Callable, args: Sequence, *, static_key: str,
                 directory: Path | None, compiler_options: dict | None = None):
     """``fn(*args)`` through its stored program (see the module docstring).
@@ -120,17 +148,7 @@ def call_stored(name: str, fn: Callable, args: Sequence, *, static_key: str,
             None: do not store.
         compiler_options: XLA options of the compilation (e.g. :data:`ONE_SHOT`); None: JAX's.
     """
-    key = program_key(name, static_key, args)
-    places = ([directory / key] if directory is not None else []) + [SHIPPED / key]
-    for path in places:
-        if path.exists() and (exported := _read(path)) is not None:
-            return _run(exported, args, compiler_options)
-    exported = export_program(fn, args)
-    if directory is not None:
-        try:
-            write_program(exported, directory / key)
-        except OSError:  # a read-only cache only costs the next run the tracing
-            pass
+    exported = stored_program(name, fn, args, static_key=static_key, directory=directory)
     return _run(exported, args, compiler_options)
 
 
@@ -146,6 +164,10 @@ def main() -> None:
     for path in SHIPPED.glob("*.jaxexport"):
         path.unlink()
     stored_report(Setup(), RunOptions(), directory=SHIPPED)
+    from .sensitivity.command import default_study_program
+
+    fn, stored, share = default_study_program()
+    stored_program(stored.name, fn, [share], static_key=stored.static_key, directory=SHIPPED)
     for path in sorted(SHIPPED.glob("*.jaxexport")):
         print(f"wrote {path.relative_to(PACKAGE.parent)} ({path.stat().st_size / 1e3:.0f} kB)")
 

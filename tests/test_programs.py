@@ -1,5 +1,6 @@
 """Stored programs (jaxdobby.programs): what the command line runs through them is what
-simulate computes, and the package's shipped program of the default configuration is current."""
+simulate computes, and the package's shipped programs of the default configuration are
+current."""
 
 import numpy as np
 import pytest
@@ -7,6 +8,7 @@ import pytest
 from jaxdobby import programs
 from jaxdobby.config import RunOptions
 from jaxdobby.parameters import Setup
+from jaxdobby.sensitivity.command import default_study_program
 from jaxdobby.simulate import report_program, simulate, stored_report, summary
 
 
@@ -20,11 +22,13 @@ def test_shipped_program_of_the_default_configuration_is_current(default_setup):
     the default configuration's program for the current sources (their fingerprint is part of
     its key). After a change of jaxdobby's code: `python -m jaxdobby.programs` makes it anew."""
     name, _, args, static_key = report_program(default_setup, RunOptions())
-    key = programs.program_key(name, static_key, args)
-    assert (programs.SHIPPED / key).exists(), (
-        "the shipped program is stale: run `python -m jaxdobby.programs` and commit "
-        "jaxdobby/data/programs")
-    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 1
+    _, sobol, share = default_study_program()
+    for key in (programs.program_key(name, static_key, args),
+                programs.program_key(sobol.name, sobol.static_key, [share])):
+        assert (programs.SHIPPED / key).exists(), (
+            f"the shipped program {key} is stale: run `python -m jaxdobby.programs` and "
+            "commit jaxdobby/data/programs")
+    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 2
 
 
 def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):

@@ -149,6 +149,39 @@ def test_cpu_compiler_options_and_their_fallback(monkeypatch):
     batch_module._compile.cache_clear()
 
 
+def test_a_stored_model_program_is_traced_once_and_read_back_by_its_key(tmp_path):
+    # StoredModel (what `jaxdobby sobol` uses for its built-in models): the per-device program is
+    # exported once and written; the outputs are the traced program's (atol 1e-12 as above:
+    # another compilation of the same arithmetic). A later evaluate finds the program by its
+    # key alone, without tracing: a different function under the same key still gets the
+    # stored program's outputs (so the key must describe the model: run_sobol keys only the
+    # registry's models, by their names and sampled parameters).
+    from jaxdobby.sensitivity.batch import StoredModel
+
+    space = ParameterSpace.from_names(["x1", "x2", "x3"], ISHIGAMI.parameters)
+    x = space.sample(256, second_order=False, seed=3)
+    stored = StoredModel("sobol-test", "ishigami x1 x2 x3", tmp_path)
+    traces = []
+
+    def model(row):
+        traces.append(1)
+        return {"y": ishigami(row)}
+
+    plain = np.asarray(jax.jit(jax.vmap(model))(jnp.asarray(x))["y"])
+    first = evaluate(model, x, chunk_size=CHUNK, devices=1, stored=stored).outputs["y"]
+    np.testing.assert_allclose(first, plain, rtol=0, atol=1e-12)
+    assert len(list(tmp_path.glob("sobol-test-*.jaxexport"))) == 1
+
+    def other(row):
+        traces.append(1)
+        return {"y": 0.0 * row[0]}
+
+    traces.clear()
+    again = evaluate(other, x, chunk_size=CHUNK, devices=1, stored=stored).outputs["y"]
+    assert not traces  # read back, not traced
+    np.testing.assert_array_equal(again, first)
+
+
 def failing_model(bad_nan, bad_status):
     """Ishigami, NaN on one given row and ok=False on another (rows matched by their values)."""
 

@@ -30,6 +30,7 @@ import dataclasses
 import functools
 import math
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -37,6 +38,7 @@ import numpy as np
 from jax.sharding import NamedSharding, PartitionSpec
 
 from .._x64 import require_x64
+from ..programs import stored_program
 from .failures import STATUS, SampleFailure, find_failures
 from .store import ChunkStore
 
@@ -90,7 +92,8 @@ def check_chunk_size(chunk_size: int, n_devices: int) -> None:
                          f"({n_devices}); got {chunk_size}")
 
 
-def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence[jax.Device]):
+def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence[jax.Device],
+                   stored: StoredModel | None = None):
     """The compiled per-chunk function: (C, D) float64 samples → dict of (C,) outputs.
 
     Compiled once per (model, C, D, devices) and kept (the last few), so calling
@@ -101,21 +104,50 @@ def chunk_function(model: Callable, chunk_size: int, dim: int, devices: Sequence
         chunk_size: rows per chunk C, a multiple of ``len(devices)``.
         dim: columns D.
         devices: local devices of the 1-D mesh.
+        stored: where the traced program of one device's share of a chunk (the vmapped model
+            on C / devices rows) is kept (:class:`StoredModel`); None: traced every time.
 
     Returns:
         ``(compiled, sharding)``: the AOT-compiled function and the input sharding it expects.
     """
     check_chunk_size(chunk_size, len(devices))
-    return _compile(model, chunk_size, dim, tuple(devices))
+    return _compile(model, chunk_size, dim, tuple(devices), stored)
+
+
+@dataclasses.dataclass(frozen=True)
+class StoredModel:
+    """How a model's traced per-device program is kept (:func:`jaxdobby.programs.stored_program`).
+
+    Tracing the dobby's model (the finite elements, the modal reduction, the kinematics and the
+    collocation passes, vmapped) takes seconds of Python work on every run, longer than XLA
+    takes to load its compiled executable from the persistent cache. The per-device program
+    (``jax.vmap(model)`` on C / devices rows) is exported once and run under ``shard_map``
+    by any number of devices.
+
+    Attributes:
+        name: the program's name (a file-name prefix).
+        static_key: a text that differs whenever the model function differs (the model, its
+            sampled parameters and their units).
+        directory: where programs are stored; None: only the shipped ones are read.
+    """
+
+    name: str
+    static_key: str
+    directory: Path | None
 
 
 @functools.lru_cache(maxsize=8)
-def _compile(model: Callable, chunk_size: int, dim: int, devices: tuple[jax.Device, ...]):
+def _compile(model: Callable, chunk_size: int, dim: int, devices: tuple[jax.Device, ...],
+             stored: StoredModel | None = None):
     mesh = jax.make_mesh((len(devices),), ("samples",), axis_types=(jax.sharding.AxisType.Auto,),
                          devices=devices)
     spec = PartitionSpec("samples")
-    sharded = jax.shard_map(jax.vmap(model), mesh=mesh, in_specs=spec, out_specs=spec,
-                            check_vma=False)
+    body = jax.vmap(model)
+    if stored is not None:
+        share = jax.ShapeDtypeStruct((chunk_size // len(devices), dim), jnp.float64)
+        body = stored_program(stored.name, body, [share], static_key=stored.static_key,
+                              directory=stored.directory).call
+    sharded = jax.shard_map(body, mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False)
     sharding = NamedSharding(mesh, spec)
     arg = jax.ShapeDtypeStruct((chunk_size, dim), jnp.float64, sharding=sharding)
     compiled = compile_for(jax.jit(sharded).lower(arg), devices)
@@ -167,7 +199,7 @@ def _check_outputs(out_info, chunk_size: int) -> None:
 
 def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = 512,
              devices: int | Sequence[jax.Device] | None = None, store: ChunkStore | None = None,
-             progress: Progress | None = None) -> Evaluation:
+             progress: Progress | None = None, stored: StoredModel | None = None) -> Evaluation:
     """Evaluate ``model`` on every row of ``samples`` (see the module docstring).
 
     Args:
@@ -180,6 +212,7 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = 512,
             (``prepare`` + ``create``) by the caller.
         progress: called with (rows done, rows in this process's share) once at the start and
             after each finished chunk.
+        stored: keep the traced program of the model on disk (:class:`StoredModel`).
 
     Returns:
         The outputs of every row, identical on every process.
@@ -192,7 +225,7 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = 512,
         raise ValueError("samples must be finite")
     total, dim = samples.shape
     devs = local_devices(devices)
-    compiled, sharding = chunk_function(model, chunk_size, dim, devs)
+    compiled, sharding = chunk_function(model, chunk_size, dim, devs, stored)
     dtypes = {k: np.dtype(v.dtype) for k, v in compiled.out_info.items()}
     n_chunks = math.ceil(total / chunk_size)
     proc, n_proc = jax.process_index(), jax.process_count()

@@ -27,14 +27,15 @@ import dataclasses
 import os
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import jax
 import numpy as np
 
 from .analysis import SobolResult, analyze, check_settings
-from .batch import Evaluation, Progress, check_chunk_size, evaluate, local_devices
+from .batch import (Evaluation, Progress, StoredModel, check_chunk_size, evaluate,
+                    local_devices)
 from .dobby import DOBBY
 from .failures import POLICIES, FailedSamplesError
 from .models import ISHIGAMI, ModelSpec
@@ -238,7 +239,7 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
     initialize_distributed(config)  # before anything starts JAX's backend (build may)
     fn = model.build(space)  # may refuse the problem (e.g. bounds the model cannot run)
     n_dev = len(local_devices(config.devices))
-    chunk = config.chunk_size or -(-DEFAULT_CHUNK // n_dev) * n_dev
+    chunk = config.chunk_size or default_chunk(n_dev)
     check_chunk_size(chunk, n_dev)  # before anything is written
     samples = space.sample(n, second_order=config.second_order, seed=config.seed)
 
@@ -257,7 +258,7 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
 
     t0 = time.perf_counter()
     evaluation = evaluate(fn, samples, chunk_size=chunk, devices=config.devices,
-                          store=store, progress=progress)
+                          store=store, progress=progress, stored=stored_model(model, space))
     seconds = time.perf_counter() - t0
     writer = jax.process_index() == 0
     files = []
@@ -285,6 +286,43 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
         if config.figures:
             files += save_figures(result, out / "figures")
     return SobolRun(result, evaluation, space, out, tuple(files), writer)
+
+
+def default_chunk(devices: int) -> int:
+    """Rows per chunk when the config sets none: :data:`DEFAULT_CHUNK` rounded up to a
+    multiple of the device count."""
+    return -(-DEFAULT_CHUNK // devices) * devices
+
+
+SHIPPED_DEVICES = 2
+"""The device count whose default study's program ships with the package (a 2-core CPU)."""
+
+
+def default_study_program() -> tuple[Callable, StoredModel, jax.ShapeDtypeStruct]:
+    """(per-device function, how it is stored, its argument) of the default study
+    (``jaxdobby sobol`` with its defaults on :data:`SHIPPED_DEVICES` devices): what
+    ``python -m jaxdobby.programs`` ships (:mod:`jaxdobby.programs`)."""
+    import jax.numpy as jnp
+
+    config = SobolConfig()
+    model = MODELS[config.model]
+    space = build_space(config, model)
+    share = default_chunk(SHIPPED_DEVICES) // SHIPPED_DEVICES
+    return (jax.vmap(model.build(space)), stored_model(model, space),
+            jax.ShapeDtypeStruct((share, len(space.names)), jnp.float64))
+
+
+def stored_model(model: ModelSpec, space: ParameterSpace) -> StoredModel | None:
+    """Where the traced program of a built-in model (:data:`MODELS`) is kept: the command
+    line's programs folder (:func:`jaxdobby.command_line.programs_dir`), keyed by the model
+    and the sampled parameters with their units; None for another model (its function is
+    unknown here, so no key could tell two of them apart)."""
+    from ..command_line import programs_dir
+
+    if MODELS.get(model.name) is not model:
+        return None
+    key = repr((space.names, tuple(float(s) for s in space.si_scales)))
+    return StoredModel(f"sobol-{model.name}", key, programs_dir())
 
 
 def _sample_warnings(space, samples, outputs) -> dict:
