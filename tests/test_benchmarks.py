@@ -65,7 +65,7 @@ def test_scipy_steady_state_matches_jaxdobby():
     # collocation, 432 steps, the metrics' extremes refined by parabolas) over the same 3001
     # output times: two integrators and two periodic solvers that share only the equations
     # (test_numpy_rhs_equals_vector_field). Collocation agrees with jaxdobby's adaptive Tsit5 at
-    # rtol 1e-8 to ≤ 1e-6 (test_dobby), scipy at rtol 1e-10 to far less; tolerance 1e-5, the
+    # rtol 1e-8 to ≤ 1e-6 (test_dobby, slow), scipy at rtol 1e-10 to far less; tolerance 1e-5, the
     # bar the batch path is held to (measured 6.2e-8). Periodic to 1e-7 on scipy's side: there
     # the chord iteration stalls at the period map's own noise (residuals 1e-9 ... 6e-8 in
     # further iterations at rtol 1e-10, measured 2026-12-02), and a 1e-7 start state moves the

@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from jaxdobby.cli import main
+from jaxdobby.command_line import programs_dir
+from jaxdobby.config import RunOptions
 from jaxdobby.parameters import PARAMETERS, Setup, apply
-from jaxdobby.simulate import simulate, summary
+from jaxdobby.simulate import stored_report
 from jaxdobby.sweep import run_sweep
 
 KEYS = ("deviation_pp_mm", "deviation_min_mm", "deviation_max_mm", "acceleration_amp_m_s2",
@@ -19,9 +21,11 @@ def test_vmapped_sweep_equals_single_runs():
     result = run_sweep(Setup(), "thickness", values)
     for v, row in zip(values, result.rows):
         s = apply(Setup(), {"thickness": v * PARAMETERS["thickness"].scale})
-        single = summary(simulate(s.machine, s.operating, steps=result.steps))
+        # the single run as `jaxdobby simulate` reports it (the command line's stored program:
+        # simulate() and summary() in one program, held to them in test_programs.py)
+        single, _, _ = stored_report(s, RunOptions(steps=result.steps), directory=programs_dir())
         # Same equations, same step count (the sweep uses the most demanding value's): equal
-        # to round-off of the batched arithmetic.
+        # to round-off of the batched arithmetic (and of the stored program's LLVM level 0).
         for key in KEYS:
             np.testing.assert_allclose(row[key], single[key], rtol=1e-9, err_msg=key)
     # The source study's trend (thicker arm, smaller deviation) holds.

@@ -336,7 +336,9 @@ def affine_rows(space: DesignSpace, limits: Constraints) -> tuple[int, ...]:
     frequency is never linear. Checked numerically rather than by name: the Jacobian at the
     corners u = 0, u = 1 and two inner points must agree, and c(1) − c(0) = J·1.
     """
-    points = [jnp.zeros(space.size), jnp.ones(space.size), jnp.full(space.size, 0.3),
+    # all strongly typed float64 (jnp.full of a Python float alone is weakly typed, a second
+    # compilation of the same program)
+    points = [jnp.zeros(space.size), jnp.ones(space.size), jnp.full(space.size, 0.3, dtype=float),
               jnp.linspace(0.9, 0.1, space.size)]
     values = [constraint_jacobian(space, limits, u) for u in points]
     c = np.stack([np.asarray(v[0]) for v in values])
