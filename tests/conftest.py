@@ -8,6 +8,17 @@ jax.config.update("jax_enable_x64", True)
 import os
 from pathlib import Path
 
+# LLVM's optimisation level 0 for every program the tests compile (here, in the command-line
+# subprocesses and in the notebooks' kernels, which inherit the environment): most test programs
+# run once, so compile time is what the suite waits for (tests/test_batch.py: 75 -> 65 s on 2
+# cores, empty cache). It changes how fast the machine code is, not its arithmetic: XLA's CPU
+# backend keeps IEEE semantics at every level (no fast-math), so results are those of the
+# default level to round-off, as tests/test_programs.py checks for the command line's ONE_SHOT
+# option. Set JAXDOBBY_TEST_XLA_OPT=default to test at XLA's default level.
+if os.environ.get("JAXDOBBY_TEST_XLA_OPT", "0") != "default":
+    os.environ["XLA_FLAGS"] = " ".join(filter(None, [os.environ.get("XLA_FLAGS", ""),
+                                                      "--xla_backend_optimization_level=0"]))
+
 # Share compiled executables between the in-process command-line tests and the ones that start
 # `jaxdobby` in a subprocess (and between test runs on the same checkout).
 os.environ.setdefault("JAXDOBBY_CACHE_DIR",

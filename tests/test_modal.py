@@ -57,8 +57,13 @@ def test_cantilever_consistent_mass_errors():
     assert np.all(err10 > 0)
     np.testing.assert_allclose(err10, EXPECTED_ERROR_10, rtol=0.06)
     # Halving h divides the error by ~16 (O(h^4) for frequencies of cubic elements); the higher
-    # modes are still pre-asymptotic at 10 elements, hence the band 12...17.
+    # modes are still pre-asymptotic at 10 elements, hence the band 12...17. The first mode's
+    # rate is taken from 5 to 10 elements: its error at 20 (5.8e-8) is within a few times the
+    # round-off floor of its frequency (axial over bending stiffness ~1e7 in this 1 mm beam: the
+    # error at 20 elements moved 5.8e-8 -> 4.5e-8, its ratio 14.8 -> 19.1, with XLA's LLVM
+    # optimisation level alone), whereas 5 -> 10 gives 15.81 at either level.
     ratio = err10 / bending_errors(slender_cantilever(20))
+    ratio[0] = bending_errors(slender_cantilever(5))[0] / err10[0]
     assert np.all((ratio > 12) & (ratio < 17)), ratio
 
 
