@@ -8,16 +8,21 @@ jax.config.update("jax_enable_x64", True)
 import os
 from pathlib import Path
 
-# LLVM's optimisation level 0 for every program the tests compile (here, in the command-line
-# subprocesses and in the notebooks' kernels, which inherit the environment): most test programs
-# run once, so compile time is what the suite waits for (tests/test_batch.py: 75 -> 65 s on 2
-# cores, empty cache). It changes how fast the machine code is, not its arithmetic: XLA's CPU
-# backend keeps IEEE semantics at every level (no fast-math), so results are those of the
-# default level to round-off, as tests/test_programs.py checks for the command line's ONE_SHOT
-# option. Set JAXDOBBY_TEST_XLA_OPT=default to test at XLA's default level.
-if os.environ.get("JAXDOBBY_TEST_XLA_OPT", "0") != "default":
-    os.environ["XLA_FLAGS"] = " ".join(filter(None, [os.environ.get("XLA_FLAGS", ""),
-                                                      "--xla_backend_optimization_level=0"]))
+# The command line's one-shot XLA options (jaxdobby.programs.ONE_SHOT: LLVM's optimisation
+# level 0) for every program the tests compile, here and in the command-line subprocesses and
+# the notebooks' kernels, which inherit the environment: most test programs run once, so compile
+# time is what the suite waits for (the default suite 8.4 -> 5.9 min on 2 cores, empty cache).
+# It changes how fast the machine code is, not its arithmetic (no fast-math at any level):
+# results are the default level's to round-off, as tests/test_programs.py checks for ONE_SHOT.
+# JAXDOBBY_TEST_XLA_FLAGS holds these flags for tests that build a subprocess's XLA_FLAGS.
+# Set JAXDOBBY_TEST_XLA_OPT=default to test at XLA's default level.
+from jaxdobby.programs import ONE_SHOT  # noqa: E402
+
+if os.environ.get("JAXDOBBY_TEST_XLA_OPT") != "default":
+    _flags = " ".join(f"--{k}={v}" for k, v in ONE_SHOT.items())
+    os.environ["JAXDOBBY_TEST_XLA_FLAGS"] = _flags
+    if _flags not in os.environ.get("XLA_FLAGS", ""):  # pytest-xdist's workers inherit it
+        os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_flags}".strip()
 
 # Share compiled executables between the in-process command-line tests and the ones that start
 # `jaxdobby` in a subprocess (and between test runs on the same checkout).

@@ -34,10 +34,9 @@ ARGS = ["--model", "ishigami", "--n", str(N), "--second-order", "--seed", str(SE
 
 def env(**extra):
     e = dict(os.environ, PYTHONPATH=str(ROOT), JAX_PLATFORMS="cpu")
-    # no device-count flag of the parent; the compile options it tests with (tests/conftest.py)
-    # kept, so that bit-identical claims compare programs compiled alike
-    e["XLA_FLAGS"] = " ".join(f for f in e.get("XLA_FLAGS", "").split()
-                              if f.startswith("--xla_backend_optimization_level"))
+    # no device-count flag of the parent, but the compile options the tests run with
+    # (tests/conftest.py), so that bit-identical claims compare programs compiled alike
+    e["XLA_FLAGS"] = os.environ.get("JAXDOBBY_TEST_XLA_FLAGS", "")
     if "XLA_FLAGS" in extra:
         extra["XLA_FLAGS"] = f"{e['XLA_FLAGS']} {extra['XLA_FLAGS']}".strip()
     e.update(extra)
