@@ -14,7 +14,6 @@ positions of the stroke ghosted behind it (``jaxdobby simulate --out`` writes it
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from matplotlib.collections import LineCollection
@@ -164,11 +163,11 @@ def mechanism_figure(machine: Machine, loom_angle_deg: float = 180.0, *,
     The bottom and top positions of the rigid stroke are ghosted behind the drawing.
     """
     sampling = arm_sampling(machine) if sampling is None else sampling
-    ends = rigid_pose(machine, crank_angle_at(machine, np.radians([0.0, 360.0])), sampling)
-    crank = crank_angle_at(machine, math.radians(loom_angle_deg))
-    rigid = rigid_pose(machine, crank, sampling)
+    cranks = crank_angle_at(machine, np.radians([0.0, 360.0, loom_angle_deg]))
+    poses = rigid_pose(machine, cranks, sampling)  # bottom, top and the loom angle's, at once
+    ends_list = [Pose(*(v[i] for v in poses)) for i in range(2)]
+    crank, rigid = cranks[2], Pose(*(v[2] for v in poses))
     fig, ax = plt.subplots(figsize=(7.2, 7.4), layout="constrained")
-    ends_list = [Pose(*(np.asarray(v)[i] for v in ends)) for i in range(2)]
     for pose in ends_list:
         draw_pose(ax, pose, sampling, ghost=True, joints=False)
     shown = rigid

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -85,11 +86,15 @@ def crank_angle_at(machine: Machine, loom_angle, plan=None) -> np.ndarray:
     heald-frame cycle is ψ = 0…4π, the frame at the top at ψ = 2π). With a lift ``plan``
     (P,) of 0/1 (DESIGN.md §7): ψ = 0 is the middle of the last pick's dwell and the repeat
     is ψ = 0…2πP."""
-    chain = machine.chain
+    plan = None if plan is None else jnp.asarray(plan, dtype=float)
+    return np.asarray(_crank_angles(machine.chain, jnp.asarray(loom_angle, dtype=float), plan))
+
+
+@eqx.filter_jit
+def _crank_angles(chain: DobbyLinkage, loom_angle, plan):
     (crank_start, _), _ = dead_centres(chain)
-    return np.asarray(modulator_crank_angle(jnp.asarray(loom_angle, dtype=float), 1.0,
-                                            dwell=chain.dwell, start_angle=crank_start,
-                                            law=chain.motion_law, plan=plan))
+    return modulator_crank_angle(loom_angle, 1.0, dwell=chain.dwell, start_angle=crank_start,
+                                 law=chain.motion_law, plan=plan)
 
 
 def _downstream(chain: DobbyLinkage, joint):
@@ -104,20 +109,24 @@ def _downstream(chain: DobbyLinkage, joint):
     return c, e, h
 
 
-def _pose(chain: DobbyLinkage, crank, theta, arm_body, ring_body, link_body) -> Pose:
-    """Pose from the eccentric angle, arm angle and the (possibly deformed) arm in its frame."""
-    crank = jnp.asarray(crank, dtype=float)
+def _pose_arrays(chain: DobbyLinkage, crank, theta, arm_body, ring_body, link_body):
+    """(Q, J, arm, P, C, E, H) from the eccentric angle, the arm angle and the (possibly
+    deformed) arm in its frame (traced: inside the compiled pose programs below)."""
     q = chain.eccentric_axis + chain.eccentricity * jnp.stack([jnp.cos(crank), jnp.sin(crank)],
                                                               axis=-1)
     arm = rotate(theta[..., None], arm_body)
     ring = rotate(theta, ring_body)
     link = rotate(theta, link_body)
     c, e, h = _downstream(chain, link)
-    shape = theta.shape + (2,)
-    fixed = lambda p: np.broadcast_to(np.asarray(p), shape)  # noqa: E731
-    return Pose(fixed(chain.eccentric_axis), np.asarray(q), fixed(np.zeros(2)), np.asarray(ring),
-                np.asarray(arm), np.asarray(link), np.asarray(c), fixed(chain.blade_pivot),
-                np.asarray(e), np.asarray(h))
+    return q, ring, arm, link, c, e, h
+
+
+def _as_pose(chain: DobbyLinkage, arrays) -> Pose:
+    """The :class:`Pose` (numpy) of :func:`_pose_arrays`' output, fixed joints broadcast."""
+    q, ring, arm, link, c, e, h = (np.asarray(a) for a in arrays)
+    fixed = lambda p: np.broadcast_to(np.asarray(p), q.shape)  # noqa: E731
+    return Pose(fixed(chain.eccentric_axis), q, fixed(np.zeros(2)), ring, arm, link, c,
+                fixed(chain.blade_pivot), e, h)
 
 
 def arm_sampling(machine: Machine, model: DobbyModel | None = None) -> ArmSampling:
@@ -127,16 +136,8 @@ def arm_sampling(machine: Machine, model: DobbyModel | None = None) -> ArmSampli
     link-11 joint, ``model.body.points``), so q of a run of that model deforms the arm the way
     the model did; a mismatch beyond round-off raises ``ValueError``.
     """
-    beam = arm_beam(machine.arm)
-    nodes = np.asarray(machine.arm.node_arc_lengths())
-    s = np.concatenate([np.linspace(a, b, SAMPLES_PER_ELEMENT, endpoint=False)
-                        for a, b in zip(nodes[:-1], nodes[1:])] + [nodes[-1:]])
+    s, body, modal_rows, special, nodes = (np.asarray(a) for a in _sampling_arrays(machine))
     element = np.repeat(np.arange(nodes.size - 1), SAMPLES_PER_ELEMENT)
-    shapes = np.asarray(arm_modes(machine).shapes)
-    rows_of = lambda ss: np.asarray(jax.vmap(beam.point_rows)(jnp.asarray(ss)))  # noqa: E731
-    special = rows_of(np.array([float(machine.arm.ring_joint_arc_length),
-                                float(machine.link11_arc_length)])) @ shapes
-    modal_rows = rows_of(s) @ shapes
     if model is not None:
         own = np.asarray(model.body.points[LINK])
         sign = np.where(np.sum(own * special[1], axis=0) < 0.0, -1.0, 1.0)
@@ -144,20 +145,38 @@ def arm_sampling(machine: Machine, model: DobbyModel | None = None) -> ArmSampli
             raise ValueError("the model's basis is not the arm's own modes (a fixed basis?): "
                              "cannot draw its deformation")
         special, modal_rows = special * sign, modal_rows * sign
-    return ArmSampling(arc_lengths=s, element=element,
-                       body=np.asarray(machine.chain.arm.point(jnp.asarray(s))),
-                       modal_rows=modal_rows, ring_rows=special[0], link_rows=special[1],
-                       node_arc_lengths=nodes)
+    return ArmSampling(arc_lengths=s, element=element, body=body, modal_rows=modal_rows,
+                       ring_rows=special[0], link_rows=special[1], node_arc_lengths=nodes)
+
+
+@eqx.filter_jit
+def _sampling_arrays(machine: Machine):
+    """(s, body points, N(s)Φ, N Φ at the ring-link and link-11 joints, node s) of
+    :func:`arm_sampling`: one compiled program rather than hundreds of small operations."""
+    beam = arm_beam(machine.arm)
+    nodes = machine.arm.node_arc_lengths()
+    step = (nodes[1:] - nodes[:-1]) / SAMPLES_PER_ELEMENT  # np.linspace(a, b, K, endpoint=False)
+    s = nodes[:-1, None] + step[:, None] * jnp.arange(SAMPLES_PER_ELEMENT)
+    s = jnp.concatenate([s.reshape(-1), nodes[-1:]])
+    shapes = arm_modes(machine).shapes
+    rows_of = jax.vmap(beam.point_rows)
+    special = rows_of(jnp.stack([machine.arm.ring_joint_arc_length,
+                                 machine.link11_arc_length])) @ shapes
+    return s, machine.chain.arm.point(s), rows_of(s) @ shapes, special, nodes
 
 
 def rigid_pose(machine: Machine, crank, sampling: ArmSampling) -> Pose:
     """The rigid mechanism at eccentric angle(s) φ [rad] (any shape)."""
     chain = machine.chain
-    crank = jnp.asarray(crank, dtype=float)
+    return _as_pose(chain, _rigid_pose(chain, jnp.asarray(crank, dtype=float),
+                                       jnp.asarray(sampling.body)))
+
+
+@eqx.filter_jit
+def _rigid_pose(chain: DobbyLinkage, crank, body):
     theta = arm_angle_from_crank(chain, crank)
-    return _pose(chain, crank, theta, sampling.body,
-                 chain.arm.point(chain.ring_joint_arc_length),
-                 chain.arm.point(chain.link11_arc_length))
+    return _pose_arrays(chain, crank, theta, body, chain.arm.point(chain.ring_joint_arc_length),
+                        chain.arm.point(chain.link11_arc_length))
 
 
 def flexible_pose(machine: Machine, crank, sampling: ArmSampling, q,
@@ -169,10 +188,16 @@ def flexible_pose(machine: Machine, crank, sampling: ArmSampling, q,
     loop closures (at magnification 1, the coupled model's flexible heald-frame height).
     """
     chain = machine.chain
-    crank = jnp.asarray(crank, dtype=float)
+    rows = (jnp.asarray(a) for a in (sampling.body, sampling.modal_rows, sampling.ring_rows,
+                                       sampling.link_rows))
+    q = jnp.asarray(np.asarray(q, dtype=float) * magnification)
+    return _as_pose(chain, _flexible_pose(chain, jnp.asarray(crank, dtype=float), *rows, q))
+
+
+@eqx.filter_jit
+def _flexible_pose(chain: DobbyLinkage, crank, body, modal_rows, ring_rows, link_rows, q):
     theta = arm_angle_from_crank(chain, crank)
-    q = jnp.asarray(q, dtype=float) * magnification
-    arm = sampling.body + jnp.einsum("nik,...k->...ni", sampling.modal_rows, q)
-    ring = chain.arm.point(chain.ring_joint_arc_length) + q @ sampling.ring_rows.T
-    link = chain.arm.point(chain.link11_arc_length) + q @ sampling.link_rows.T
-    return _pose(chain, crank, theta, arm, ring, link)
+    arm = body + jnp.einsum("nik,...k->...ni", modal_rows, q)
+    ring = chain.arm.point(chain.ring_joint_arc_length) + q @ ring_rows.T
+    link = chain.arm.point(chain.link11_arc_length) + q @ link_rows.T
+    return _pose_arrays(chain, crank, theta, arm, ring, link)
