@@ -79,7 +79,18 @@ def summarise(records: list[dict], top: int = 25) -> dict:
             "small": {"count": len(small), "seconds": sum(r["seconds"] for r in small)},
             "lowering_s": sum(r["seconds"] for r in records if r["kind"] == "lower"),
             "cache_hits": sum(r["kind"] == "hit" for r in records),
-            "biggest": big[:top]}
+            "biggest": big[:top],
+            "small_by_test": _grouped(small, "test", top),
+            "small_by_program": _grouped(small, "program", top)}
+
+
+def _grouped(records: list[dict], field: str, top: int) -> list[dict]:
+    """The ``top`` values of ``field`` whose records take the most seconds, with count and sum."""
+    groups: dict[str, list[float]] = {}
+    for r in records:
+        groups.setdefault(r[field], []).append(r["seconds"])
+    rows = [{field: k, "count": len(v), "seconds": sum(v)} for k, v in groups.items()]
+    return sorted(rows, key=lambda r: -r["seconds"])[:top]
 
 
 def markdown(s: dict, wall: float, summary_line: str) -> str:
@@ -93,6 +104,11 @@ def markdown(s: dict, wall: float, summary_line: str) -> str:
              f"persistent-cache hits {s['cache_hits']}.", "",
              "| seconds | program | test |", "|---|---|---|"]
     lines += [f"| {r['seconds']:.1f} | `{r['program']}` | `{r['test']}` |" for r in s["biggest"]]
+    for field in ("test", "program"):
+        lines += ["", f"Small compilations by {field}:", "", f"| seconds | count | {field} |",
+                  "|---|---|---|"]
+        lines += [f"| {r['seconds']:.1f} | {r['count']} | `{r[field]}` |"
+                  for r in s[f"small_by_{field}"]]
     return "\n".join(lines) + "\n"
 
 
