@@ -43,11 +43,23 @@ def _configure_jax() -> None:
     cache = _cache_dir()
     if cache is not None:
         jax.config.update("jax_compilation_cache_dir", str(cache))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", _min_compile_time())
         # no Python tracebacks in the programs' locations: the cache's key is the program's
         # text, so a program traced from another call site (a script, a test, a notebook)
         # would otherwise be compiled anew although it is the same computation
         jax.config.update("jax_traceback_in_locations_limit", 0)
+
+
+def _min_compile_time() -> float:
+    """Seconds a compilation must take to be kept in the persistent cache: JAX's own
+    ``JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS`` if set (the test suite keeps every program,
+    to share them between its processes), else 0.5 (the command line's programs, not the
+    many tiny eager operations around them)."""
+    value = os.environ.get("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "")
+    try:
+        return max(float(value), 0.0)
+    except ValueError:
+        return 0.5
 
 
 def _cache_dir() -> Path | None:

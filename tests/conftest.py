@@ -29,6 +29,13 @@ if os.environ.get("JAXDOBBY_TEST_XLA_OPT") != "default":
 os.environ.setdefault("JAXDOBBY_CACHE_DIR",
                       str(Path(__file__).resolve().parent.parent / ".pytest_cache" / "xla"))
 
+# Every compiled program goes into that cache, the small ones too (the command line keeps only
+# those of at least 0.5 s): the two pytest-xdist workers and the subprocesses then compile each
+# of the thousands of small eager operations once rather than once per process (measured: the
+# default suite 5.9 -> 5.7 min, benchmarks/suite_time.py). The command line reads the variable
+# (jaxdobby.command_line._configure_jax); JAX reads it at import in the notebooks' kernels.
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+
 from jaxdobby.command_line import _configure_jax  # noqa: E402
 
 _configure_jax()  # before anything compiles: the persistent cache is set up at first use
@@ -37,7 +44,6 @@ _configure_jax()  # before anything compiles: the persistent cache is set up at 
 # (JAX reads these at import), so a program a test compiled is not compiled again there.
 if os.environ["JAXDOBBY_CACHE_DIR"].lower() != "off":
     os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.environ["JAXDOBBY_CACHE_DIR"])
-    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
     os.environ.setdefault("JAX_TRACEBACK_IN_LOCATIONS_LIMIT", "0")
 
 
