@@ -2,8 +2,9 @@
 
 The suite compiles at LLVM's optimisation level 0 (``tests/conftest.py``): most test programs
 run once and briefly, so compile time dominates. A long adaptive solve at rtol 1e-10 is the
-opposite: :func:`jit_to_run` compiles it, traced whole (set-up included, one program instead of
-many eager operations), at XLA's default level. The arithmetic is the same at either level (no
+opposite, and so is a right-hand side that scipy calls 1e5 times: :func:`jit_to_run` compiles
+such a program (traced whole where it can be, set-up included: one program instead of many
+eager operations) at XLA's default level. The arithmetic is the same at either level (no
 fast-math), so the claims and tolerances do not depend on it.
 """
 

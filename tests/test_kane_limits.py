@@ -148,7 +148,7 @@ def test_scipy_solve_ivp_agrees_with_diffrax():
     ts = jnp.linspace(0.0, 20.0, 201)
     ours = simulate_flexible_body(body, motion, ts, rtol=1e-10, atol=1e-12)
     args = (body, motion, None, jnp.zeros(2), jnp.asarray(1.0))
-    rhs = jax.jit(lambda t, y: jnp.concatenate(_vector_field(t, (y[:4], y[4:]), args)))
+    rhs = jit_to_run(lambda t, y: jnp.concatenate(_vector_field(t, (y[:4], y[4:]), args)))
     sol = solve_ivp(lambda t, y: np.asarray(rhs(t, y)), (0.0, 20.0), np.zeros(8),
                     method="DOP853", t_eval=np.asarray(ts), rtol=1e-11, atol=1e-13)
     tip_scipy = sol.y[:4].T @ np.asarray(body.points[0, 1])
