@@ -18,7 +18,7 @@ from jaxdobby.pictures.animation import DPI, FIGSIZE, animate, ffmpeg_binary
 from jaxdobby.pictures.campbell import (campbell_figure, crossing_speeds, frequency_band,
                                         max_harmonic)
 from jaxdobby.pictures.mechanism import draw_pose, mechanism_figure
-from jaxdobby.pictures.pose import Pose, arm_sampling, crank_angle_at, flexible_pose, rigid_pose
+from jaxdobby.pictures.pose import arm_sampling, crank_angle_at, flexible_pose, rigid_pose
 from jaxdobby.plots import plt
 
 ANGLES = np.array([0.0, 90.0, 180.0, 300.0, 360.0, 500.0, 640.0])  # loom angles [deg]
@@ -33,10 +33,6 @@ def default_run():
 @pytest.fixture(scope="module")
 def sampling(default_run):
     return arm_sampling(default_run.model.machine, default_run.model)
-
-
-def _instant(pose, i):
-    return Pose(*(np.asarray(v)[i] for v in pose))
 
 
 def _length(line):
@@ -57,7 +53,7 @@ def test_drawn_link_lengths_are_the_configured_ones(stroke_mm, sampling):
     r_p = float(np.linalg.norm(np.asarray(chain.arm.point(chain.link11_arc_length))))
     for i in range(ANGLES.size):
         fig, ax = plt.subplots()
-        art = draw_pose(ax, _instant(poses, i), s)
+        art = draw_pose(ax, poses.at(i), s)
         # Lengths measured on the drawn lines equal the configured links to 1e-9 m (they are
         # float64 differences of ~0.5 m coordinates: round-off is ~1e-16 m).
         for key, value in (("crank", chain.eccentricity), ("ring_link", chain.ring_link_length),

@@ -33,7 +33,7 @@ from ..errors import InputError
 from ..kinematics import blade_reachable
 from ..plots import plt
 from .mechanism import MM, draw_pose, frame_axes
-from .pose import Pose, arm_sampling, crank_angle_at, flexible_pose, rigid_pose
+from .pose import arm_sampling, crank_angle_at, flexible_pose, rigid_pose
 
 N_FRAMES = 48
 FIGSIZE = (8.0, 4.6)
@@ -65,10 +65,6 @@ def auto_magnification(deflection_max: float, arm_length: float) -> float:
     raw = TARGET_DEFLECTION * arm_length / deflection_max
     decade = 10.0 ** math.floor(math.log10(raw))
     return max(1.0, max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= raw))
-
-
-def _frame(pose: Pose, i: int) -> Pose:
-    return Pose(*(np.asarray(v)[i] for v in pose))
 
 
 def animation_frames(run, n_frames: int = N_FRAMES, magnification: float | None = None):
@@ -141,8 +137,8 @@ def animate(run, path, *, n_frames: int = N_FRAMES, magnification: float | None 
         norm = norm or colors.Normalize(element_values.min(), element_values.max())
         fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7,
                      label=colour_label)
-    frames = [_frame(rigid, i) for i in range(n_frames)]
-    bent = [_frame(flexible, i) for i in range(n_frames)]
+    frames = [rigid.at(i) for i in range(n_frames)]
+    bent = [flexible.at(i) for i in range(n_frames)]
     ax_dev.plot(cycle_angle, np.asarray(series.deviation) * MM, color="C3", lw=1.0)
     ax_dev.axhline(0.0, color="k", lw=0.6)
     ax_dev.set_xlim(0.0, span)

@@ -165,8 +165,7 @@ def mechanism_figure(machine: Machine, loom_angle_deg: float = 180.0, *,
     sampling = arm_sampling(machine) if sampling is None else sampling
     cranks = crank_angle_at(machine, np.radians([0.0, 360.0, loom_angle_deg]))
     poses = rigid_pose(machine, cranks, sampling)  # bottom, top and the loom angle's, at once
-    ends_list = [Pose(*(v[i] for v in poses)) for i in range(2)]
-    crank, rigid = cranks[2], Pose(*(v[2] for v in poses))
+    ends_list, crank, rigid = [poses.at(0), poses.at(1)], cranks[2], poses.at(2)
     fig, ax = plt.subplots(figsize=(7.2, 7.4), layout="constrained")
     for pose in ends_list:
         draw_pose(ax, pose, sampling, ghost=True, joints=False)

@@ -58,6 +58,10 @@ class Pose(NamedTuple):
     tumbler_joint: np.ndarray  # E
     heald_frame: np.ndarray  # H = (x_g, y_H)
 
+    def at(self, i) -> "Pose":
+        """The pose of instant ``i`` of a pose over many instants (index of the leading axis)."""
+        return Pose(*(np.asarray(v)[i] for v in self))
+
 
 class ArmSampling(NamedTuple):
     """The arm's centre line sampled for drawing.
