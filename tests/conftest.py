@@ -52,17 +52,24 @@ if os.environ["JAXDOBBY_CACHE_DIR"].lower() != "off":
 # is its own group (as ``--dist loadfile``), so module fixtures are computed once.
 SHARED_PROGRAMS = {
     # the command line's report program of the default configuration (jit(call), ~10 s), and
-    # simulate()'s default program with the stress recovery (test_programs, notebook 02)
+    # simulate()'s default program with the stress recovery (~10 s): test_dobby, test_pictures,
+    # test_dense_output and test_stress_arm call simulate() on the default machine (one
+    # in-memory program for all of them; test_programs and notebook 02 then read its compiled
+    # executable from the cache), test_sweep runs the report program for its single runs
+    # (measured alone: 32.5 s, after test_cli's default run 20.9 s)
     "test_cli.py": "report", "test_programs.py": "report", "test_validity.py": "report",
-    "test_robustness.py": "report", "test_notebooks.py": "report",
+    "test_robustness.py": "report", "test_notebooks.py": "report", "test_sweep.py": "report",
+    "test_dobby.py": "report", "test_pictures.py": "report", "test_dense_output.py": "report",
+    "test_stress_arm.py": "report",
 }
 
 
-# The longest groups first (worker seconds in the default suite, measured 2026-12-03: report
-# ~190, batch ~100, dobby ~85, ...), so that the two workers finish together rather than one
-# starting a long file when the other is done (longest-processing-time-first).
-LONGEST_FIRST = ("report", "test_batch.py", "test_dobby.py", "test_sweep.py", "test_identify.py",
-                 "test_kane_limits.py", "test_pictures.py", "test_optimize.py", "test_ritz.py")
+# The longest groups first (worker seconds in the default suite, measured 2026-12-04: report
+# ~200, batch ~55, kane_limits ~36, identify ~34, ritz ~26, ...), so that the two workers finish
+# together rather than one starting a long file when the other is done
+# (longest-processing-time-first).
+LONGEST_FIRST = ("report", "test_batch.py", "test_kane_limits.py", "test_identify.py",
+                 "test_ritz.py", "test_optimize.py", "test_benchmarks.py")
 
 
 @pytest.hookimpl(tryfirst=True)
