@@ -167,7 +167,16 @@ def coupled_frequencies(model: DobbyModel, t=None) -> Array:
     frame at mid-stroke while lifting): mass M + G_qᵀ D G_q (the chain's inertia through the
     partial velocities), stiffness K with the ring link along its actual direction and, for the
     restoring warp law, the warp force's stiffness F_w/(H/2) on the heald frame.
+
+    One compiled program (inlined where a caller traces it): called eagerly (notebooks, the
+    pictures), its kinematics and eigenvalue problem were compiled operation by operation:
+    1.0 s in a new process instead of 6.8 s (measured 2026-12-04, 2 cores, empty cache).
     """
+    return _coupled_frequencies(model, None if t is None else jnp.asarray(t, dtype=float))
+
+
+@eqx.filter_jit  # t an array (or None), so that a new time does not compile a new program
+def _coupled_frequencies(model: DobbyModel, t) -> Array:
     if model.lift_plan is not None and t is None:
         # a configuration's property: the same at mid-stroke whatever the lift plan
         model = dataclasses.replace(model, lift_plan=None)
