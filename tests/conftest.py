@@ -56,20 +56,25 @@ SHARED_PROGRAMS = {
     # test_dense_output and test_stress_arm call simulate() on the default machine (one
     # in-memory program for all of them; test_programs and notebook 02 then read its compiled
     # executable from the cache), test_sweep runs the report program for its single runs
-    # (measured alone: 32.5 s, after test_cli's default run 20.9 s)
+    # (measured alone: 32.5 s, after test_cli's default run 20.9 s), test_sensitivity_dobby
+    # for the rows it re-runs through the report program
     "test_cli.py": "report", "test_programs.py": "report", "test_validity.py": "report",
     "test_robustness.py": "report", "test_notebooks.py": "report", "test_sweep.py": "report",
     "test_dobby.py": "report", "test_pictures.py": "report", "test_dense_output.py": "report",
-    "test_stress_arm.py": "report",
+    "test_stress_arm.py": "report", "test_sensitivity_dobby.py": "report",
 }
 
 
 # The longest groups first (worker seconds in the default suite, measured 2026-12-04: report
-# ~200, batch ~55, kane_limits ~36, identify ~34, ritz ~26, ...), so that the two workers finish
-# together rather than one starting a long file when the other is done
-# (longest-processing-time-first).
+# ~205, batch ~56, kane_limits ~36, identify ~30, ritz ~28, benchmarks ~22, ...; the ~15 other
+# files, ~50 s together, follow in file order), so that the two workers finish together rather
+# than one starting a long file when the other is done (longest-processing-time-first).
+# pytest-xdist keeps this order only with --no-loadscope-reorder (pyproject.toml): by default it
+# orders the groups by their number of tests.
 LONGEST_FIRST = ("report", "test_batch.py", "test_kane_limits.py", "test_identify.py",
-                 "test_ritz.py", "test_optimize.py", "test_benchmarks.py")
+                 "test_ritz.py", "test_benchmarks.py", "test_sensitivity_parallel.py",
+                 "test_optimize.py", "test_reference_dobby.py", "test_reference_spinup.py",
+                 "test_kinematics.py", "test_stress_recovery.py")
 
 
 @pytest.hookimpl(tryfirst=True)
