@@ -37,7 +37,6 @@ import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import optax
 
 from .feasible import FeasibleSet, box_projected_gradient
 
@@ -173,6 +172,8 @@ def optimize(value_and_grad: Callable, constraints: Callable, u0, settings: Sett
     n_nl = int(nonlinear.sum())
     lam, rho = np.zeros(n_nl), float(settings.penalty)
     start = time.perf_counter()
+    import optax  # here, not at the top: every jaxdobby command imports this package (~0.1 s)
+
     if settings.optimizer == "adam":
         schedule = optax.cosine_decay_schedule(settings.learning_rate, max(settings.steps, 1),
                                                alpha=0.02)
