@@ -14,7 +14,8 @@ JAX and jaxlib versions, the platform, and a fingerprint of jaxdobby's own sourc
 change of the code therefore makes a new key — a stale program is never used, only not found.
 
 Programs of the default configuration ship in the package (``jaxdobby/data/programs``, made by
-``python -m jaxdobby.programs``): ``jaxdobby simulate``'s report and the per-device program of
+``python -m jaxdobby.programs``): ``jaxdobby simulate``'s two (the run and its report,
+compiled side by side: :func:`compile_together`) and the per-device program of
 the default ``jaxdobby sobol`` study on a 2-core CPU (:mod:`jaxdobby.sensitivity.batch`), so
 that even the first run with an empty cache skips tracing when the installed JAX is the one
 they were made with; ``tests/test_programs.py`` checks that they are current.
@@ -110,6 +111,25 @@ def _run(exported, args, compiler_options):
         return exported.call(*args)
     compiled = jax.jit(exported.call).lower(*args).compile(compiler_options=compiler_options)
     return compiled(*args)
+
+
+def compile_together(programs: Sequence[tuple], compiler_options: dict | None = None) -> list:
+    """Compile several exported programs at once: ``programs`` a sequence of (exported,
+    argument specs); returns their compiled callables, in order.
+
+    Each is lowered here (Python work, one after the other), then XLA compiles them in as many
+    threads: XLA's CPU compilation of one program runs on one core at a time, so two programs
+    compile in about the time of the longer (measured on 2 cores: two programs of 4.9 and
+    2.3 s, 7.4 s one after the other and 4.5 s together).
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    lowered = [jax.jit(exported.call).lower(*map(_spec, specs)) for exported, specs in programs]
+    options = compiler_options or None
+    if len(lowered) == 1:
+        return [lowered[0].compile(compiler_options=options)]
+    with ThreadPoolExecutor(len(lowered)) as pool:
+        return list(pool.map(lambda low: low.compile(compiler_options=options), lowered))
 
 
 def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,

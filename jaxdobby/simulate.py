@@ -402,18 +402,30 @@ def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, 
 
 def stored_report_arrays(setup, options, *, directory=None) -> dict[str, np.ndarray]:
     """The flat report arrays (:func:`report_arrays`, NumPy) behind :func:`stored_report`, from
-    the same stored program compiled with the same options (arguments as there): callers that
-    need the raw arrays share the command line's compiled program."""
-    from .programs import ONE_SHOT, call_stored
+    the same stored programs compiled with the same options (arguments as there): callers that
+    need the raw arrays share the command line's compiled programs.
 
-    name, fn, args, static_key = report_program(setup, options)
-    return jax.device_get(call_stored(name, fn, args, static_key=static_key,
-                                      directory=directory, compiler_options=ONE_SHOT))
+    Two programs (:func:`report_programs`): the run, and the report of the run (the arm's
+    stress and the validity checks). XLA compiles them side by side
+    (:func:`jaxdobby.programs.compile_together`), and they run one after the other."""
+    from .programs import ONE_SHOT, compile_together, stored_program
+
+    (name_run, run_fn, args, key), (name_report, report_fn, key_report) = report_programs(
+        setup, options)
+    run = stored_program(name_run, run_fn, args, static_key=key, directory=directory)
+    leaves = [jax.ShapeDtypeStruct(a.shape, a.dtype) for a in run.out_avals]
+    report = stored_program(name_report, report_fn, leaves, static_key=key_report,
+                            directory=directory)
+    run_c, report_c = compile_together([(run, args), (report, leaves)], ONE_SHOT)
+    return jax.device_get(report_c(*run_c(*args)))
 
 
-def report_program(setup, options) -> tuple:
-    """(name, function of flat arrays, the arrays, static_key) of :func:`stored_report`'s
-    program (the arguments of :func:`jaxdobby.programs.call_stored`)."""
+def report_programs(setup, options) -> tuple:
+    """:func:`stored_report`'s two programs, as arguments of
+    :func:`jaxdobby.programs.stored_program`: ((name, function of the flat arrays, the arrays,
+    static_key) of the run, whose outputs are the arrays of its
+    :class:`Simulation`, in order; (name, function of those arrays, static_key) of the report
+    of the run, which returns :func:`report_arrays`)."""
     require_x64()
     machine, operating = setup.machine, setup.operating
     plan = check_lift_plan(getattr(options, "lift_plan", None), machine)
@@ -421,10 +433,21 @@ def report_program(setup, options) -> tuple:
                                    lift_plan=plan)
     dynamic, static = eqx.partition((machine, operating, plan), eqx.is_array)
     leaves, tree = jax.tree.flatten(dynamic)
+    specs = [jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a)) for a in leaves]
 
-    def report(*values):
+    def simulation(*values):
         m, o, p = eqx.combine(jax.tree.unflatten(tree, values), static)
-        return report_arrays(_simulate_impl(m, o, None, p, method=method, steps=steps,
-                                            **_SIMULATE_DEFAULTS))
+        return _simulate_impl(m, o, None, p, method=method, steps=steps, **_SIMULATE_DEFAULTS)
 
-    return "simulate", report, leaves, repr((static, tree, method, steps, _SIMULATE_DEFAULTS))
+    def run(*values):
+        return jax.tree.leaves(eqx.filter(simulation(*values), eqx.is_array))
+
+    def report(*run_values):
+        # the Simulation's structure (traced only when this program is exported)
+        shape = eqx.filter_eval_shape(simulation, *specs)
+        arrays, rest = eqx.partition(shape, lambda x: isinstance(x, jax.ShapeDtypeStruct))
+        return report_arrays(eqx.combine(
+            jax.tree.unflatten(jax.tree.structure(arrays), run_values), rest))
+
+    key = repr((static, tree, method, steps, _SIMULATE_DEFAULTS))
+    return ("simulate", run, leaves, key), ("simulate-report", report, key)

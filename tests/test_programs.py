@@ -2,6 +2,7 @@
 simulate computes, and the package's shipped programs of the default configuration are
 current."""
 
+import jax
 import numpy as np
 import pytest
 
@@ -9,7 +10,7 @@ from jaxdobby import programs
 from jaxdobby.config import RunOptions
 from jaxdobby.parameters import Setup
 from jaxdobby.sensitivity.command import default_study_program
-from jaxdobby.simulate import report_program, simulate, stored_report, summary
+from jaxdobby.simulate import report_programs, simulate, stored_report, summary
 
 
 @pytest.fixture(scope="module")
@@ -21,14 +22,20 @@ def test_shipped_program_of_the_default_configuration_is_current(default_setup):
     """The first `jaxdobby simulate` with an empty cache skips tracing only if the package ships
     the default configuration's program for the current sources (their fingerprint is part of
     its key). After a change of jaxdobby's code: `python -m jaxdobby.programs` makes it anew."""
-    name, _, args, static_key = report_program(default_setup, RunOptions())
+    (name, run, args, static_key), (report_name, _, report_key) = report_programs(
+        default_setup, RunOptions())
+    # the report's arguments are the run's outputs (read from the shipped run program, or
+    # traced anew if it is stale)
+    leaves = [jax.ShapeDtypeStruct(a.shape, a.dtype) for a in programs.stored_program(
+        name, run, args, static_key=static_key, directory=None).out_avals]
     _, sobol, share = default_study_program()
     for key in (programs.program_key(name, static_key, args),
+                programs.program_key(report_name, report_key, leaves),
                 programs.program_key(sobol.name, sobol.static_key, [share])):
         assert (programs.SHIPPED / key).exists(), (
             f"the shipped program {key} is stale: run `python -m jaxdobby.programs` and "
             "commit jaxdobby/data/programs")
-    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 2
+    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 3
 
 
 def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):
@@ -41,11 +48,11 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
     sources) must not find the stored file."""
     monkeypatch.setattr(programs, "SHIPPED", tmp_path / "shipped")  # none shipped
     first, _, _ = stored_report(default_setup, RunOptions(), directory=tmp_path)
-    stored = list(tmp_path.glob("*.jaxexport"))
-    assert len(stored) == 1
+    stored = sorted(tmp_path.glob("*.jaxexport"))
+    assert len(stored) == 2  # the run and its report
     slower = Setup(operating=default_setup.operating.__class__.from_users_units(speed_rpm=600.0))
     got, series, stress = stored_report(slower, RunOptions(), directory=tmp_path)
-    assert list(tmp_path.glob("*.jaxexport")) == stored  # read back, not exported anew
+    assert sorted(tmp_path.glob("*.jaxexport")) == stored  # read back, not exported anew
     run = simulate(slower.machine, slower.operating)
     want = summary(run)
     for key, value in want.items():
@@ -67,5 +74,6 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
                                atol=1e-10 * float(np.ptp(run.series.deviation)))
     assert float(stress.metrics["stress_max"]) * 1e-6 == pytest.approx(got["stress_max_mpa"])
     assert first["speed_rpm"] == pytest.approx(800.0) and got["speed_rpm"] == pytest.approx(600.0)
-    name, _, args, static_key = report_program(slower, RunOptions())
-    assert programs.program_key(name, static_key + " changed", args) != stored[0].name
+    (name, _, args, static_key), _ = report_programs(slower, RunOptions())
+    assert programs.program_key(name, static_key + " changed", args) not in {
+        p.name for p in stored}
