@@ -29,6 +29,7 @@ import tempfile
 from collections.abc import Callable, Sequence
 from functools import cache
 from pathlib import Path
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -113,6 +114,15 @@ def _run(exported, args, compiler_options):
     return compiled(*args)
 
 
+class Unstored(NamedTuple):
+    """A program that cannot be exported (it calls back into Python: ``jax.export`` does not
+    serialise host callbacks, which diffrax's adaptive solver uses): traced in every run and
+    never stored, with the two attributes of an exported program this module uses."""
+
+    call: Callable
+    out_avals: tuple
+
+
 def compile_together(programs: Sequence[tuple], compiler_options: dict | None = None) -> list:
     """Compile several exported programs at once: ``programs`` a sequence of (exported,
     argument specs); returns their compiled callables, in order.
@@ -144,7 +154,10 @@ def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
     for path in places:
         if path.exists() and (exported := _read(path)) is not None:
             return exported
-    exported = export_program(fn, args)
+    try:
+        exported = export_program(fn, args)
+    except NotImplementedError:  # host callbacks (diffrax's adaptive solver) do not serialise
+        return Unstored(fn, tuple(jax.tree.leaves(jax.eval_shape(fn, *map(_spec, args)))))
     if directory is not None:
         try:
             write_program(exported, directory / key)

@@ -77,3 +77,23 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
     (name, _, args, static_key), _ = report_programs(slower, RunOptions())
     assert programs.program_key(name, static_key + " changed", args) not in {
         p.name for p in stored}
+
+
+def test_a_program_with_host_callbacks_runs_unstored(tmp_path):
+    """jax.export does not serialise host callbacks (diffrax's adaptive solver has them:
+    `jaxdobby simulate --method adaptive`): such a program is traced and compiled in every run,
+    not stored, and gives what the function gives."""
+    seen = []
+
+    def fn(x):
+        jax.debug.callback(lambda v: seen.append(float(v)), x[0])
+        return [2.0 * x, x.sum()]
+
+    x = jax.numpy.arange(3.0)
+    got = programs.stored_program("callback", fn, [x], static_key="", directory=tmp_path)
+    assert isinstance(got, programs.Unstored) and not list(tmp_path.iterdir())
+    assert [(a.shape, a.dtype) for a in got.out_avals] == [((3,), x.dtype), ((), x.dtype)]
+    (compiled,) = programs.compile_together([(got, [x])])
+    doubled, total = compiled(x)
+    np.testing.assert_array_equal(np.asarray(doubled), [0.0, 2.0, 4.0])
+    assert float(total) == 3.0 and seen == [0.0]
