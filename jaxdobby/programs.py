@@ -2,11 +2,12 @@
 
 Tracing and lowering the steady-state program of :func:`jaxdobby.simulate.simulate` takes
 seconds of Python work before XLA compiles anything, and with XLA's persistent compilation cache
-filled it is most of what a repeated ``jaxdobby simulate`` waits for. :func:`call_stored` runs a
-function of flat arrays through its *exported* program (StableHLO, serialised with
+filled it is most of what a repeated ``jaxdobby simulate`` waits for. :func:`stored_program` gives
+a function of flat arrays as its *exported* program (StableHLO, serialised with
 ``jax.export``): the first call traces and exports it and writes it to a directory; a later call
-(any process) reads it back and only lowers a thin wrapper around it — and XLA's persistent
-cache then also holds the compiled executable.
+(any process) reads it back, and only a thin wrapper around it is lowered
+(:func:`compile_together`) — and XLA's persistent cache then also holds the compiled
+executable.
 
 A stored program is found by a key of everything it depends on: the program's name and static
 configuration (sizes, laws, method: ``static_key``), the shapes and dtypes of its arguments, the
@@ -107,13 +108,6 @@ level 0. On the default configuration's program (2 cores, quiet machine) it comp
 (``tests/test_programs.py``)."""
 
 
-def _run(exported, args, compiler_options):
-    if not compiler_options:
-        return exported.call(*args)
-    compiled = jax.jit(exported.call).lower(*args).compile(compiler_options=compiler_options)
-    return compiled(*args)
-
-
 class Unstored(NamedTuple):
     """A program that cannot be exported (it calls back into Python: ``jax.export`` does not
     serialise host callbacks, which diffrax's adaptive solver uses): traced in every run and
@@ -129,8 +123,10 @@ def compile_together(programs: Sequence[tuple], compiler_options: dict | None = 
 
     Each is lowered here (Python work, one after the other), then XLA compiles them in as many
     threads: XLA's CPU compilation of one program runs on one core at a time, so two programs
-    compile in about the time of the longer (measured on 2 cores: two programs of 4.9 and
-    2.3 s, 7.4 s one after the other and 4.5 s together).
+    compile in about the time of the longer (measured on 2 cores, 2026-12-04: simulate's steady
+    state and the batch evaluator's programs, 7.4 s one after the other, 4.5 s together).
+    ``compiler_options``: XLA options of every compilation (e.g. :data:`ONE_SHOT`); None:
+    JAX's.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -144,11 +140,21 @@ def compile_together(programs: Sequence[tuple], compiler_options: dict | None = 
 
 def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
                    directory: Path | None):
-    """The exported program of ``fn`` for arguments shaped as ``args`` (arrays or
-    ``jax.ShapeDtypeStruct``): read from ``directory`` or the shipped programs, or traced,
-    exported and written to ``directory`` (see the module docstring and :func:`call_stored`
-    for the arguments). Call it with ``exported.call`` (inside ``jax.jit``, ``jax.shard_map``
-    ...)."""
+    """The exported program of ``fn`` for arguments shaped as ``args``: read from ``directory``
+    or the shipped programs, or traced, exported and written to ``directory`` (see the module
+    docstring); :class:`Unstored` if it cannot be exported. Call it with ``exported.call``
+    (inside ``jax.jit``, ``jax.shard_map`` ...) or compile it with :func:`compile_together`.
+
+    Args:
+        name: the program's name (a file-name prefix).
+        fn: a function of the arrays ``args`` alone (everything static closed over and
+            described by ``static_key``), returning a pytree of standard containers (dicts,
+            lists, tuples) of arrays.
+        args: the arrays, or their ``jax.ShapeDtypeStruct``.
+        static_key: a text that differs whenever what ``fn`` closes over differs.
+        directory: where programs are stored and looked for (besides the shipped ones);
+            None: do not store.
+    """
     key = program_key(name, static_key, args)
     places = ([directory / key] if directory is not None else []) + [SHIPPED / key]
     for path in places:
@@ -164,25 +170,6 @@ def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
         except OSError:  # a read-only cache only costs the next run the tracing
             pass
     return exported
-
-
-def call_stored(name: str, fn: Callable, args: Sequence, *, static_key: str,
-                directory: Path | None, compiler_options: dict | None = None):
-    """``fn(*args)`` through its stored program (see the module docstring).
-
-    Args:
-        name: the program's name (a file-name prefix).
-        fn: a function of the arrays ``args`` alone (everything static closed over and
-            described by ``static_key``), returning a pytree of standard containers (dicts,
-            lists, tuples) of arrays.
-        args: the arrays.
-        static_key: a text that differs whenever what ``fn`` closes over differs.
-        directory: where programs are stored and looked for (besides the shipped ones);
-            None: do not store.
-        compiler_options: XLA options of the compilation (e.g. :data:`ONE_SHOT`); None: JAX's.
-    """
-    exported = stored_program(name, fn, args, static_key=static_key, directory=directory)
-    return _run(exported, args, compiler_options)
 
 
 def main() -> None:

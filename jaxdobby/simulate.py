@@ -382,9 +382,9 @@ def summary(run: Simulation, stress=None) -> dict[str, float | list | bool]:
 def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, object]:
     """(summary, time series, arm stress :class:`~jaxdobby.stress.cycle.CycleStress`) of
     ``simulate(setup.machine, setup.operating, method=…, steps=…)``
-    as the command line reports them, through a stored program
-    (:func:`jaxdobby.programs.call_stored`): a later run of the same configuration — the same
-    sizes, laws and method; any float values — reads the traced program from ``directory``
+    as the command line reports them, through its two stored programs
+    (:func:`jaxdobby.programs.stored_program`): a later run of the same configuration — the same
+    sizes, laws and method; any float values — reads the traced programs from ``directory``
     (or the package's shipped ones) instead of tracing it.
 
     Args:
