@@ -439,15 +439,20 @@ def report_programs(setup, options) -> tuple:
         m, o, p = eqx.combine(jax.tree.unflatten(tree, values), static)
         return _simulate_impl(m, o, None, p, method=method, steps=steps, **_SIMULATE_DEFAULTS)
 
+    structure = []  # the Simulation's (array structure, non-array part), once known
+
     def run(*values):
-        return jax.tree.leaves(eqx.filter(simulation(*values), eqx.is_array))
+        arrays, rest = eqx.partition(simulation(*values), eqx.is_array)
+        structure.append((jax.tree.structure(arrays), rest))
+        return jax.tree.leaves(arrays)
 
     def report(*run_values):
-        # the Simulation's structure (traced only when this program is exported)
-        shape = eqx.filter_eval_shape(simulation, *specs)
-        arrays, rest = eqx.partition(shape, lambda x: isinstance(x, jax.ShapeDtypeStruct))
-        return report_arrays(eqx.combine(
-            jax.tree.unflatten(jax.tree.structure(arrays), run_values), rest))
+        if not structure:  # the run's program was read from disk: trace its shapes alone
+            shape = eqx.filter_eval_shape(simulation, *specs)
+            arrays, rest = eqx.partition(shape, lambda x: isinstance(x, jax.ShapeDtypeStruct))
+            structure.append((jax.tree.structure(arrays), rest))
+        tree, rest = structure[-1]
+        return report_arrays(eqx.combine(jax.tree.unflatten(tree, run_values), rest))
 
     key = repr((static, tree, method, steps, _SIMULATE_DEFAULTS))
     return ("simulate", run, leaves, key), ("simulate-report", report, key)
