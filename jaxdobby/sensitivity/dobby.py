@@ -29,7 +29,7 @@ from ..parameters import PARAMETERS, Setup, apply
 from ..stroke import arc_length_for_stroke, stroke_range
 from .models import ModelSpec
 from .space import ParameterSpace, ParameterSpec
-from .validity import sample_resonances
+from .validity import resonance_count
 
 VECTOR_PARAMETERS = ("depth_positions",)
 """Parameters that are lists (not sampled; ``depth`` is sampled as a uniform depth)."""
@@ -71,12 +71,15 @@ def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
 
         def model(x):
             setup, ok = setup_of_row(start, names, scales, x)
-            out = steady_state_metrics(setup, steps=steps, tolerance=tolerance)
+            # the resonance check takes its frequencies from the model the solve assembles
+            out = steady_state_metrics(setup, steps=steps, tolerance=tolerance,
+                                       frequencies=True)
             metrics = {name: out[key] * factor for key, (name, factor) in METRIC_UNITS.items()}
             metrics["ok"] = out["ok"] & ok
             # validity outputs (jaxdobby.sensitivity.validity): not metrics
             metrics["validity.converged"] = (out["periodicity"] <= tolerance).astype(float)
-            metrics["validity.resonances"] = sample_resonances(setup)
+            metrics["validity.resonances"] = resonance_count(setup.operating.speed,
+                                                             out["frequencies"])
             return metrics
 
         return model

@@ -7,7 +7,8 @@ in ``outputs.npz``), and :func:`sample_warnings` counts the rows that fail each 
 
 * the default model (:data:`jaxdobby.sensitivity.dobby.DOBBY`, the reduced-in-solve batch
   evaluator) returns ``validity.converged`` (1.0 when the periodicity residual met its
-  tolerance) and ``validity.resonances`` (:func:`sample_resonances`), so it counts
+  tolerance) and ``validity.resonances`` (:func:`sample_resonances`'s count, from the
+  frequencies of the model its solve assembles: :func:`resonance_count`), so it counts
   ``not_converged``, ``workspace`` (a failed row that did converge: the chain left its reach, or
   a sampled stroke is beyond the slot), ``deviation_of_stroke`` and ``resonance``. It cannot
   count ``arm_deflection`` or ``transmission_angle``: both need the arm's modal coordinates over
@@ -51,10 +52,13 @@ def sample_resonances(setup) -> Array:
         return phase_frequencies(build_model(s.machine, s.operating))
 
     freqs = jax.custom_batching.sequential_vmap(one)(dynamic)
-    return _count(setup.operating.speed, freqs)
+    return resonance_count(setup.operating.speed, freqs)
 
 
-def _count(speed, freqs) -> Array:
+def resonance_count(speed, freqs) -> Array:
+    """:func:`sample_resonances` from the sample's speed [rad/s] and its coupled frequencies
+    over the cycle [Hz], (phases, modes) (:func:`jaxdobby.validity.phase_frequencies`, or
+    ``frequencies=True`` of :func:`jaxdobby.periodic.steady_state_metrics`)."""
     cycle_hz = speed / (4.0 * jnp.pi)  # ω/(2π)/2: a cycle is two picks
     return jnp.sum(resonant(cycle_hz, jnp.min(freqs, axis=0), jnp.max(freqs, axis=0))).astype(
         float)
