@@ -93,7 +93,8 @@ def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
     """Build the coupled model of ``setup`` (finite elements, modal reduction) and tabulate its
     rigid motion on ``steps`` steps per cycle.
 
-    :func:`steady_state_metrics` runs this once per sample, *sequentially* over a batch
+    :func:`steady_state_metrics` does the same (with the model's coupled frequencies when
+    asked) once per sample, *sequentially* over a batch
     (``jax.custom_batching.sequential_vmap``): it is where the LAPACK calls are (Cholesky,
     ``eigh``, LU of the 31-DOF arm), and jaxlib spreads a batched LAPACK call over the CPU's
     intra-op threads and blocks one of them until the pieces finish, so two such calls running
