@@ -32,6 +32,12 @@ cycle's relative periodicity residual (:func:`jaxdobby.steady_state.relative_res
 3e-3 (median; 3 at most: the linearisation's unresolved stiff modes), then 3e-6, 4e-9 after
 one and two chord steps (1e-4, 8e-7 at most); from the static equilibrium it takes a cycle
 more to get there (1, 9e-4, 9e-7, 2e-9).
+
+**What it costs** (128 samples of the default design through :func:`linearise_lanes`, one
+pinned core, ad hoc, 2026-12-05): ~0.56 ms per sample, of which the product Φ ← ΨΦ of the
+2k × 2k matrices at every step is ~0.20 and the step maps Ψ ~0.03; the rest (~0.33) are the
+frozen matrices, the chain's Jacobian and the inversions, which the passes need anyway. A
+nonlinear cycle costs ~0.48 ms per sample on the same machine.
 """
 
 from __future__ import annotations
