@@ -100,9 +100,12 @@ def command_line_modes(modes) -> list[dict]:
 
 
 def command_line(repeats: int) -> dict:
-    """Wall time of ``jaxdobby simulate`` cold (empty cache folder) and with it filled."""
+    """Wall time of ``jaxdobby simulate`` cold (empty cache folder) and with it filled; and
+    cold with the package's shipped executables switched off
+    (``JAXDOBBY_SHIPPED_EXECUTABLES=off``: what a machine they do not fit waits, XLA
+    compiling both programs)."""
     cmd = _command()
-    cold, cached = [], []
+    cold, cached, compiled = [], [], []
     for _ in range(repeats):
         with tempfile.TemporaryDirectory() as cache:
             for times in (cold, cached):
@@ -110,8 +113,23 @@ def command_line(repeats: int) -> dict:
                 subprocess.run(cmd + ["simulate", "--json"], env=_env(cache), check=True,
                                capture_output=True, text=True)
                 times.append(time.perf_counter() - t0)
+        with tempfile.TemporaryDirectory() as cache:
+            t0 = time.perf_counter()
+            subprocess.run(cmd + ["simulate", "--json"], check=True, capture_output=True,
+                           env=dict(_env(cache), JAXDOBBY_SHIPPED_EXECUTABLES="off"), text=True)
+            compiled.append(time.perf_counter() - t0)
     return {"cold_s": statistics.median(cold), "cold_all_s": cold,
-            "cached_s": statistics.median(cached), "cached_all_s": cached}
+            "cached_s": statistics.median(cached), "cached_all_s": cached,
+            "cold_compiling_s": statistics.median(compiled), "cold_compiling_all_s": compiled,
+            "shipped_executables": _executables_usable()}
+
+
+def _executables_usable() -> bool:
+    """Whether this machine loads the package's shipped executables."""
+    out = subprocess.run([sys.executable, "-c", "from jaxdobby.programs import "
+                          "executables_usable as u; print(u())"], env=_env("off"),
+                         capture_output=True, text=True, check=True)
+    return out.stdout.strip().endswith("True")
 
 
 def against_modes(modes) -> list[dict]:
@@ -164,9 +182,17 @@ def markdown(result) -> str:
                   + ", ".join(f"{t:.1f}" for t in cl["cold_all_s"]) + " |",
                   f"| cache filled (second run) | {cl['cached_s']:.1f} s | "
                   + ", ".join(f"{t:.1f}" for t in cl["cached_all_s"]) + " |"]
+        if "cold_compiling_s" in cl:
+            lines += [f"| cold, shipped executables off (XLA compiles) | "
+                      f"{cl['cold_compiling_s']:.1f} s | "
+                      + ", ".join(f"{t:.1f}" for t in cl["cold_compiling_all_s"]) + " |"]
         lines += [f"| `--modes {r['modes']}`, cold: empty cache folder | {r['cold_s']:.1f} s "
                   f"| exit {r['exit_code']} |" for r in result.get("command_line_modes") or []]
         lines += [""]
+    if cl and "shipped_executables" in cl:
+        lines += [("The package's shipped executables of the default configuration were "
+                   + ("loaded" if cl["shipped_executables"] else "not usable here")
+                   + " in the cold runs (`jaxdobby.programs`: Linux, x86-64-v3 CPU)."), ""]
     lines += ["| modes k | tracing + lowering [s] | XLA compile [s] | StableHLO lines | warm run "
               "[ms] | per step [µs] |", "|---|---|---|---|---|---|"]
     for r in result["modes"]:

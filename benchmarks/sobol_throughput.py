@@ -124,10 +124,11 @@ def in_processes(processes: int, args, devices: int = 1) -> dict:
             "failed": sum(r["failed"] for r in runs)}
 
 
-def default_study(processes: int, cache: str = "off") -> dict:
+def default_study(processes: int, cache: str = "off", executables: bool = True) -> dict:
     """Wall time of `jaxdobby sobol --n 1024 --second-order` in ``processes`` processes joined
     by jax.distributed on localhost (compilation, analysis and figures included), with the
-    compilation cache at ``cache`` ("off": none)."""
+    compilation cache at ``cache`` ("off": none); ``executables`` False: the package's
+    shipped executables off (``JAXDOBBY_SHIPPED_EXECUTABLES=off``, XLA compiles)."""
     import socket
 
     with socket.socket() as sock:
@@ -140,6 +141,8 @@ def default_study(processes: int, cache: str = "off") -> dict:
             cmd += ["--coordinator", f"localhost:{port}", "--num-processes", str(processes)]
         t0 = time.perf_counter()
         env = _env(1, cache) if processes > 1 else _env(0, cache)
+        if not executables:
+            env["JAXDOBBY_SHIPPED_EXECUTABLES"] = "off"
         procs = [subprocess.Popen(cmd + (["--process-id", str(i)] if processes > 1 else []),
                                   env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                   text=True) for i in range(processes)]
@@ -151,7 +154,17 @@ def default_study(processes: int, cache: str = "off") -> dict:
     indices = json.loads(outs[0][0])
     st = indices["metrics"]["deviation_pp_mm"]["ST"]
     return {"processes": processes, "rows": 10240, "study_wall_s": wall,
-            "cache": "off" if cache == "off" else "filled", "study_ST_deviation_pp": st}
+            "cache": "off" if cache == "off" else "filled", "study_ST_deviation_pp": st,
+            "shipped_executables": executables and processes == 1 and _executables_usable()}
+
+
+def _executables_usable() -> bool:
+    """Whether a default study here loads the package's shipped chunk executable (this
+    machine runs them, and the CLI's one device per core is the 2 it was compiled for)."""
+    out = subprocess.run([sys.executable, "-c", "import os; from jaxdobby.programs import "
+                          "executables_usable as u; print(u() and os.cpu_count() == 2)"],
+                         env=_env(0), capture_output=True, text=True, check=True)
+    return out.stdout.strip().endswith("True")
 
 
 def cached_study() -> dict:
@@ -202,6 +215,9 @@ def markdown(result: dict) -> str:
     for r in result.get("studies", []):
         cache = ("with the persistent compilation cache filled by a previous run"
                  if r.get("cache") == "filled" else "no compilation cache")
+        if r.get("cache") != "filled" and "shipped_executables" in r:
+            cache += (", the package's shipped executable loaded" if r["shipped_executables"]
+                      else ", XLA compiling (no shipped executable used)")
         lines.append("")
         lines.append(f"Default study (`jaxdobby sobol --n 1024 --second-order`, {r['rows']} runs) "
                      f"in {r['processes']} process(es), {cache}: **{r['study_wall_s']:.0f} s** "
@@ -255,7 +271,8 @@ def main(argv=None):
               "runs": [in_processes(p, args) for p in args.processes]
               + [in_processes(1, args, d) for d in args.devices_list if d > 1]}
     if args.study:
-        result["studies"] = [default_study(1), cached_study()] + (
+        result["studies"] = [default_study(1), default_study(1, executables=False),
+                             cached_study()] + (
             [default_study(max(args.processes))] if max(args.processes) > 1 else [])
     if args.accuracy:
         result["accuracy"] = accuracy()

@@ -20,13 +20,29 @@ compiled side by side: :func:`compile_together`) and the per-device program of
 the default ``jaxdobby sobol`` study on a 2-core CPU (:mod:`jaxdobby.sensitivity.batch`), so
 that even the first run with an empty cache skips tracing when the installed JAX is the one
 they were made with; ``tests/test_programs.py`` checks that they are current.
+
+**Shipped executables.** With the tracing skipped, the first run still waits for XLA to
+compile (on 2 cores, ~4 s for ``jaxdobby simulate``'s two programs, ~10 s for the study's).
+The same three programs therefore also ship *compiled* (``*.xlaexe``:
+``jax.experimental.serialize_executable``), for the machines most users have: Linux on an
+x86-64 CPU with AVX2 (x86-64-v3: Intel since 2013, AMD since 2015). They are compiled with
+XLA's instruction set capped at AVX2 (``--xla_cpu_max_isa``), so that they run on any such
+CPU, and used only where :func:`executables_usable` finds one, the CPU backend and the exact
+JAX, jaxlib, program text, compile options and device count they were made with (all in their
+key, :func:`executable_key`); elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the
+programs compile as before. Measured on 2 cores: a fresh ``jaxdobby simulate`` with an empty
+cache loads both in ~0.3 s instead of compiling them in ~4 s.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import pickle
+import platform
+import sys
 import tempfile
+import zlib
 from collections.abc import Callable, Sequence
 from functools import cache
 from pathlib import Path
@@ -108,6 +124,91 @@ level 0. On the default configuration's program (2 cores, quiet machine) it comp
 (``tests/test_programs.py``)."""
 
 
+EXECUTABLE_ISA = "AVX2"
+"""XLA's instruction-set cap (``--xla_cpu_max_isa``) of the shipped executables."""
+
+_X86_64_V3 = frozenset({"sse4_2", "popcnt", "avx", "avx2", "bmi1", "bmi2", "f16c", "fma",
+                        "movbe", "abm"})
+"""The CPU flags (``/proc/cpuinfo``) an :data:`EXECUTABLE_ISA` executable may use (x86-64-v3;
+``abm``: LZCNT)."""
+
+
+@cache
+def _cpu_runs_shipped() -> bool:
+    """Linux on an x86-64 CPU with every flag of :data:`_X86_64_V3`."""
+    if not sys.platform.startswith("linux") or platform.machine() not in ("x86_64", "AMD64"):
+        return False
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((line.split(":", 1)[1].split() for line in f
+                          if line.startswith("flags")), [])
+    except OSError:
+        return False
+    return _X86_64_V3 <= set(flags)
+
+
+def executables_usable() -> bool:
+    """Whether shipped executables may be loaded here (see the module docstring): not switched
+    off by ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, JAX's default backend the CPU, and a CPU that
+    runs them."""
+    if os.environ.get("JAXDOBBY_SHIPPED_EXECUTABLES", "").lower() == "off":
+        return False
+    return jax.default_backend() == "cpu" and _cpu_runs_shipped()
+
+
+def executable_key(name: str, exported, specs: Sequence, setting: str) -> str | None:
+    """The file name of the compiled executable of an exported program (None for an
+    :class:`Unstored` one): a hash of the program's text and argument shapes, ``setting``
+    (what else the compilation depends on: options, devices, a wrapper around the program),
+    the JAX and jaxlib versions and :data:`EXECUTABLE_ISA`."""
+    import jaxlib
+
+    if not isinstance(exported, jax.export.Exported):
+        return None
+    digest = hashlib.sha256(exported.mlir_module_serialized)
+    shapes = ";".join(f"{s.dtype}{list(s.shape)}" for s in map(_spec, specs))
+    text = "\n".join([name, shapes, setting, jax.__version__, jaxlib.__version__,
+                      EXECUTABLE_ISA])
+    digest.update(text.encode())
+    return f"{name}-{digest.hexdigest()[:24]}.xlaexe"
+
+
+def write_executable(compiled, path: Path) -> None:
+    """Serialise a compiled program (``jax.stages.Compiled``) atomically to ``path``
+    (zlib-compressed: object code of a few MB shrinks about sixfold)."""
+    from jax.experimental.serialize_executable import serialize
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".xlaexe")
+    with os.fdopen(fd, "wb") as f:
+        f.write(zlib.compress(pickle.dumps(serialize(compiled)), 6))
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+
+
+def shipped_executable(key: str | None, devices: Sequence | None = None):
+    """The shipped executable ``key`` loaded onto ``devices`` (None: the default device), or
+    None where there is none or :func:`executables_usable` says no.
+
+    The package's own files only (``pickle``, and an XLA executable is machine code: never
+    load one from elsewhere)."""
+    if key is None or not (SHIPPED / key).exists() or not executables_usable():
+        return None
+    from jax.experimental.serialize_executable import deserialize_and_load
+
+    # a deserialised executable calls jaxlib's LAPACK kernels (Cholesky, eigh, LU) directly,
+    # and jaxlib binds them to SciPy's LAPACK on the first *lowering* of a LAPACK operation:
+    # without one in this process, the first call of the executable crashes (seen:
+    # segmentation fault). Lowering one tiny Cholesky (no compile) binds them.
+    jax.jit(jnp.linalg.cholesky).lower(jnp.eye(1))
+    try:
+        serialized, in_tree, out_tree = pickle.loads(zlib.decompress((SHIPPED / key).read_bytes()))
+        return deserialize_and_load(serialized, in_tree, out_tree,
+                                    execution_devices=devices or jax.devices()[:1])
+    except Exception:  # noqa: BLE001  (any failure to load: compile instead)
+        return None
+
+
 class Unstored(NamedTuple):
     """A program that cannot be exported (it calls back into Python: ``jax.export`` does not
     serialise host callbacks, which diffrax's adaptive solver uses): traced in every run and
@@ -117,9 +218,20 @@ class Unstored(NamedTuple):
     out_avals: tuple
 
 
-def compile_together(programs: Sequence[tuple], compiler_options: dict | None = None) -> list:
+def together_keys(programs: Sequence[tuple], compiler_options: dict | None = None) -> list:
+    """:func:`executable_key` of each program :func:`compile_together` compiles (None: not
+    shippable)."""
+    setting = f"compile_together {sorted((compiler_options or {}).items())}"
+    return [executable_key(getattr(exported, "fun_name", "program"), exported, specs, setting)
+            for exported, specs in programs]
+
+
+def compile_together(programs: Sequence[tuple], compiler_options: dict | None = None, *,
+                     ship: Path | None = None) -> list:
     """Compile several exported programs at once: ``programs`` a sequence of (exported,
-    argument specs); returns their compiled callables, in order.
+    argument specs); returns their compiled callables, in order. A program the package ships
+    compiled (:func:`shipped_executable`) is loaded instead; ``ship``: a directory to write
+    the compiled executables to (``python -m jaxdobby.programs``).
 
     Each is lowered here (Python work, one after the other), then XLA compiles them in as many
     threads: XLA's CPU compilation of one program runs on one core at a time, so two programs
@@ -130,12 +242,21 @@ def compile_together(programs: Sequence[tuple], compiler_options: dict | None = 
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    lowered = [jax.jit(exported.call).lower(*map(_spec, specs)) for exported, specs in programs]
+    keys = together_keys(programs, compiler_options)
+    done = [None if ship is not None else shipped_executable(key) for key in keys]
+    todo = [i for i, c in enumerate(done) if c is None]
+    lowered = [jax.jit(programs[i][0].call).lower(*map(_spec, programs[i][1])) for i in todo]
     options = compiler_options or None
     if len(lowered) == 1:
-        return [lowered[0].compile(compiler_options=options)]
-    with ThreadPoolExecutor(len(lowered)) as pool:
-        return list(pool.map(lambda low: low.compile(compiler_options=options), lowered))
+        compiled = [lowered[0].compile(compiler_options=options)]
+    else:
+        with ThreadPoolExecutor(max(len(lowered), 1)) as pool:
+            compiled = list(pool.map(lambda low: low.compile(compiler_options=options), lowered))
+    for i, c in zip(todo, compiled):
+        done[i] = c
+        if ship is not None and keys[i] is not None:
+            write_executable(c, ship / keys[i])
+    return done
 
 
 def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
@@ -173,7 +294,20 @@ def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
 
 
 def main() -> None:
-    """Make the shipped programs of the default configuration (``python -m jaxdobby.programs``)."""
+    """Make the shipped programs and executables of the default configuration
+    (``python -m jaxdobby.programs``).
+
+    Runs itself again in a fresh process whose XLA is set up as the shipped executables need
+    it (XLA reads its flags once, when JAX starts its backend): instruction set capped at
+    :data:`EXECUTABLE_ISA`, the devices of the default study, no persistent cache (whose
+    executables were compiled for this CPU's full instruction set)."""
+    from .sensitivity.command import SHIPPED_DEVICES
+
+    if os.environ.get("_JAXDOBBY_SHIPPING") != "1":
+        flags = (f"{os.environ.get('XLA_FLAGS', '')} --xla_cpu_max_isa={EXECUTABLE_ISA} "
+                 f"--xla_force_host_platform_device_count={SHIPPED_DEVICES}").strip()
+        env = dict(os.environ, _JAXDOBBY_SHIPPING="1", XLA_FLAGS=flags, JAXDOBBY_CACHE_DIR="off")
+        os.execve(sys.executable, [sys.executable, "-m", "jaxdobby.programs"], env)
     from .command_line import _configure_jax
 
     _configure_jax()
@@ -181,14 +315,25 @@ def main() -> None:
     from .parameters import Setup
     from .simulate import stored_report
 
-    for path in SHIPPED.glob("*.jaxexport"):
+    # XLA's machine code differs from one compilation to the next (not its arithmetic): an
+    # executable whose key is unchanged keeps its old bytes, so that the repository does not
+    # take in megabytes of new binaries whenever the sources' fingerprint changes
+    before = {path.name: path.read_bytes() for path in SHIPPED.glob("*.xlaexe")}
+    for path in [*SHIPPED.glob("*.jaxexport"), *SHIPPED.glob("*.xlaexe")]:
         path.unlink()
-    stored_report(Setup(), RunOptions(), directory=SHIPPED)
-    from .sensitivity.command import default_study_program
+    stored_report(Setup(), RunOptions(), directory=SHIPPED, ship=SHIPPED)
+    import dataclasses
 
-    fn, stored, share = default_study_program()
-    stored_program(stored.name, fn, [share], static_key=stored.static_key, directory=SHIPPED)
-    for path in sorted(SHIPPED.glob("*.jaxexport")):
+    from .sensitivity.batch import chunk_function
+    from .sensitivity.command import default_chunk, default_study_model
+
+    row, stored, dim = default_study_model()
+    chunk_function(row, default_chunk(SHIPPED_DEVICES), dim, jax.devices()[:SHIPPED_DEVICES],
+                   dataclasses.replace(stored, directory=SHIPPED, ship=SHIPPED))
+    for path in SHIPPED.glob("*.xlaexe"):
+        if path.name in before:
+            path.write_bytes(before[path.name])
+    for path in sorted([*SHIPPED.glob("*.jaxexport"), *SHIPPED.glob("*.xlaexe")]):
         print(f"wrote {path.relative_to(PACKAGE.parent)} ({path.stat().st_size / 1e3:.0f} kB)")
 
 

@@ -379,7 +379,8 @@ def summary(run: Simulation, stress=None) -> dict[str, float | list | bool]:
     return summary_of(report_arrays(run, stress), run.model.machine)
 
 
-def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, object]:
+def stored_report(setup, options, *, directory=None, ship=None
+                  ) -> tuple[dict, Timeseries, object]:
     """(summary, time series, arm stress :class:`~jaxdobby.stress.cycle.CycleStress`) of
     ``simulate(setup.machine, setup.operating, method=…, steps=…)``
     as the command line reports them, through its two stored programs
@@ -391,16 +392,19 @@ def stored_report(setup, options, *, directory=None) -> tuple[dict, Timeseries, 
         setup: :class:`~jaxdobby.parameters.Setup` (machine and operating point).
         options: :class:`~jaxdobby.config.RunOptions` (method, steps).
         directory: where to store and look for programs; None: only the shipped ones.
+        ship: where to write the two compiled executables (``python -m jaxdobby.programs``;
+            :func:`jaxdobby.programs.compile_together`).
     """
     from .stress.cycle import stress_of_arrays
 
-    arrays = stored_report_arrays(setup, options, directory=directory)
+    arrays = stored_report_arrays(setup, options, directory=directory, ship=ship)
     series = Timeseries(**{k.removeprefix("series."): v for k, v in arrays.items()
                            if k.startswith("series.")})
     return summary_of(arrays, setup.machine), series, stress_of_arrays(arrays)
 
 
-def stored_report_arrays(setup, options, *, directory=None) -> dict[str, np.ndarray]:
+def stored_report_arrays(setup, options, *, directory=None, ship=None
+                         ) -> dict[str, np.ndarray]:
     """The flat report arrays (:func:`report_arrays`, NumPy) behind :func:`stored_report`, from
     the same stored programs compiled with the same options (arguments as there): callers that
     need the raw arrays share the command line's compiled programs.
@@ -416,7 +420,7 @@ def stored_report_arrays(setup, options, *, directory=None) -> dict[str, np.ndar
     leaves = [jax.ShapeDtypeStruct(a.shape, a.dtype) for a in run.out_avals]
     report = stored_program(name_report, report_fn, leaves, static_key=key_report,
                             directory=directory)
-    run_c, report_c = compile_together([(run, args), (report, leaves)], ONE_SHOT)
+    run_c, report_c = compile_together([(run, args), (report, leaves)], ONE_SHOT, ship=ship)
     return jax.device_get(report_c(*run_c(*args)))
 
 

@@ -9,7 +9,8 @@ import pytest
 from jaxdobby import programs
 from jaxdobby.config import RunOptions
 from jaxdobby.parameters import Setup
-from jaxdobby.sensitivity.command import default_study_program
+from jaxdobby.sensitivity.batch import chunk_key
+from jaxdobby.sensitivity.command import SHIPPED_DEVICES, default_study_program
 from jaxdobby.simulate import report_programs, simulate, stored_report, summary
 
 
@@ -36,6 +37,29 @@ def test_shipped_program_of_the_default_configuration_is_current(default_setup):
             f"the shipped program {key} is stale: run `python -m jaxdobby.programs` and "
             "commit jaxdobby/data/programs")
     assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 3
+
+
+def test_shipped_executables_of_the_default_configuration_are_current(default_setup):
+    """The first `jaxdobby simulate` and default `jaxdobby sobol` on a 2-core x86-64 CPU skip
+    XLA's compilation only if the package ships their compiled executables for the current
+    programs (the programs' text is part of their key): `python -m jaxdobby.programs`."""
+    (name, run, args, static_key), (report_name, report, report_key) = report_programs(
+        default_setup, RunOptions())
+    run_p = programs.stored_program(name, run, args, static_key=static_key, directory=None)
+    leaves = [jax.ShapeDtypeStruct(a.shape, a.dtype) for a in run_p.out_avals]
+    report_p = programs.stored_program(report_name, report, leaves, static_key=report_key,
+                                       directory=None)
+    keys = programs.together_keys([(run_p, args), (report_p, leaves)], programs.ONE_SHOT)
+    fn, sobol, share = default_study_program()
+    exported = programs.stored_program(sobol.name, fn, [share], static_key=sobol.static_key,
+                                       directory=None)
+    two_cpus = [jax.devices("cpu")[0]] * SHIPPED_DEVICES  # the key reads their count and kind
+    keys.append(chunk_key(sobol, exported, share, two_cpus))
+    for key in keys:
+        assert key is not None and (programs.SHIPPED / key).exists(), (
+            f"the shipped executable {key} is stale: run `python -m jaxdobby.programs` and "
+            "commit jaxdobby/data/programs")
+    assert len(list(programs.SHIPPED.glob("*.xlaexe"))) == 3
 
 
 def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):
@@ -74,6 +98,25 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
                                atol=1e-10 * float(np.ptp(run.series.deviation)))
     assert float(stress.metrics["stress_max"]) * 1e-6 == pytest.approx(got["stress_max_mpa"])
     assert first["speed_rpm"] == pytest.approx(800.0) and got["speed_rpm"] == pytest.approx(600.0)
+    monkeypatch.undo()  # the package's shipped programs and executables again
+    if not programs.executables_usable():
+        return
+    # Through the shipped executables (compiled by `python -m jaxdobby.programs` with the
+    # instruction set capped at AVX2, serialised, loaded here): the locally compiled run's
+    # numbers to round-off, 1e-10 relative as above (the same program and options; the cap
+    # only changes which vector instructions XLA's LLVM picks, hence how it contracts
+    # multiply-adds; measured ≤ 1e-12 here, 1.3e-11 on the study's chunk program)
+    loaded = []
+    load = programs.shipped_executable
+    monkeypatch.setattr(programs, "shipped_executable",
+                        lambda *a, **k: loaded.append(load(*a, **k)) or loaded[-1])
+    shipped, _, _ = stored_report(default_setup, RunOptions())
+    assert len(loaded) == 2 and all(c is not None for c in loaded)
+    for key, value in first.items():
+        if key == "periodicity_residual":
+            assert shipped[key] == pytest.approx(value, rel=0, abs=1e-12), key
+        elif isinstance(value, float):
+            assert shipped[key] == pytest.approx(value, rel=1e-10, abs=1e-300), key
     (name, _, args, static_key), _ = report_programs(slower, RunOptions())
     assert programs.program_key(name, static_key + " changed", args) not in {
         p.name for p in stored}
@@ -97,3 +140,82 @@ def test_a_program_with_host_callbacks_runs_unstored(tmp_path):
     doubled, total = compiled(x)
     np.testing.assert_array_equal(np.asarray(doubled), [0.0, 2.0, 4.0])
     assert float(total) == 3.0 and seen == [0.0]
+
+
+def test_shipped_executables_are_not_loaded_where_they_do_not_fit(monkeypatch):
+    """An executable is machine code for one instruction set: it is loaded only where
+    executables_usable() allows (never with JAXDOBBY_SHIPPED_EXECUTABLES=off, never off the
+    CPU backend or on a CPU without x86-64-v3), and a key that ships nothing loads nothing."""
+    shipped = sorted(programs.SHIPPED.glob("*.xlaexe"))
+    assert shipped
+    monkeypatch.setenv("JAXDOBBY_SHIPPED_EXECUTABLES", "off")
+    assert not programs.executables_usable()
+    assert programs.shipped_executable(shipped[0].name) is None
+    monkeypatch.delenv("JAXDOBBY_SHIPPED_EXECUTABLES")
+    monkeypatch.setattr(programs, "_cpu_runs_shipped", lambda: False)
+    assert not programs.executables_usable()
+    assert programs.shipped_executable(shipped[0].name) is None
+    monkeypatch.setattr(programs, "_cpu_runs_shipped", lambda: True)
+    assert programs.executables_usable() == (jax.default_backend() == "cpu")
+    assert programs.shipped_executable("nothing-000.xlaexe") is None
+    assert programs.executable_key("x", programs.Unstored(None, ()), [], "") is None
+
+
+_CHUNK_AB = r"""
+import dataclasses, json, os, sys, tempfile
+from pathlib import Path
+os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
+                           + " --xla_force_host_platform_device_count=2")
+from jaxdobby.command_line import _configure_jax
+_configure_jax()
+import jax, numpy as np
+from jaxdobby.programs import executables_usable
+from jaxdobby.sensitivity import batch
+from jaxdobby.sensitivity.command import SobolConfig, MODELS, build_space, default_chunk
+from jaxdobby.sensitivity.command import default_study_model
+row, stored, dim = default_study_model()
+devices = tuple(jax.devices())
+chunk = default_chunk(2)
+loaded = []
+load = batch.shipped_executable
+def recorded(*args):
+    loaded.append(load(*args))
+    return loaded[-1]
+batch.shipped_executable = recorded
+shipped, sharding = batch._compile(row, chunk, dim, devices, stored)
+with tempfile.TemporaryDirectory() as d:  # `ship` set: compiled here, written to d
+    compiled, _ = batch._compile(row, chunk, dim, devices,
+                                 dataclasses.replace(stored, ship=Path(d)))
+space = build_space(SobolConfig(), MODELS["dobby"])
+x = jax.device_put(space.sample(1024, second_order=True, seed=0)[:chunk], sharding)
+a, b = jax.device_get(shipped(x)), jax.device_get(compiled(x))
+worst = max(float(np.max(np.abs(a[k] - b[k]) / np.abs(b[k]))) for k in b
+            if k != "ok" and not k.startswith("validity"))
+same = all(np.array_equal(a[k], b[k]) for k in b if k == "ok" or k.startswith("validity"))
+print(json.dumps({"usable": executables_usable(), "worst": worst, "same_flags": same,
+                  "loaded": [c is not None for c in loaded]}))
+"""
+
+
+@pytest.mark.slow
+def test_shipped_chunk_executable_of_the_default_study_equals_a_compiled_one(tmp_path):
+    """The default study's chunk program on 2 CPU devices, loaded from the package's shipped
+    executable (AVX2-capped machine code), against the same program compiled in this process
+    (this CPU's own instruction set, the command line's options), on the first 512 rows of the
+    default design: the same metrics to round-off, 1e-10 relative (the periodic solve amplifies
+    the rounding of the 432-step cycle map; measured 1.3e-11), the same status flags. Slow:
+    XLA compiles the chunk program (~10 s); the default suite checks the same mechanism on
+    `jaxdobby simulate`'s two programs (test_stored_report_equals_simulate_and_is_reused)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, JAXDOBBY_CACHE_DIR="off")
+    out = subprocess.run([sys.executable, "-c", _CHUNK_AB], env=env, capture_output=True,
+                         text=True, check=True, cwd=tmp_path)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    if not got["usable"]:
+        pytest.skip("this machine does not load the shipped executables")
+    assert got["loaded"] == [True], got  # the first from the package, the second compiled
+    assert got["same_flags"] and got["worst"] <= 1e-10, got

@@ -38,7 +38,7 @@ import numpy as np
 from jax.sharding import NamedSharding, PartitionSpec
 
 from .._x64 import require_x64
-from ..programs import stored_program
+from ..programs import executable_key, shipped_executable, stored_program, write_executable
 from .failures import STATUS, SampleFailure, find_failures
 from .store import ChunkStore
 
@@ -129,11 +129,15 @@ class StoredModel:
         static_key: a text that differs whenever the model function differs (the model, its
             sampled parameters and their units).
         directory: where programs are stored; None: only the shipped ones are read.
+        ship: where to write the compiled chunk program (``python -m jaxdobby.programs``);
+            None: the package's shipped executable is loaded where there is one
+            (:func:`jaxdobby.programs.shipped_executable`).
     """
 
     name: str
     static_key: str
     directory: Path | None
+    ship: Path | None = None
 
 
 @functools.lru_cache(maxsize=8)
@@ -142,17 +146,36 @@ def _compile(model: Callable, chunk_size: int, dim: int, devices: tuple[jax.Devi
     mesh = jax.make_mesh((len(devices),), ("samples",), axis_types=(jax.sharding.AxisType.Auto,),
                          devices=devices)
     spec = PartitionSpec("samples")
+    sharding = NamedSharding(mesh, spec)
     body = jax.vmap(model)
+    key = None
     if stored is not None:
         share = jax.ShapeDtypeStruct((chunk_size // len(devices), dim), jnp.float64)
-        body = stored_program(stored.name, body, [share], static_key=stored.static_key,
-                              directory=stored.directory).call
-    sharded = jax.shard_map(body, mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False)
-    sharding = NamedSharding(mesh, spec)
-    arg = jax.ShapeDtypeStruct((chunk_size, dim), jnp.float64, sharding=sharding)
-    compiled = compile_for(jax.jit(sharded).lower(arg), devices)
+        exported = stored_program(stored.name, body, [share], static_key=stored.static_key,
+                                  directory=stored.directory)
+        body = exported.call
+        key = chunk_key(stored, exported, share, devices)
+    compiled = None if stored is not None and stored.ship is not None else (
+        shipped_executable(key, devices))
+    if compiled is None:
+        sharded = jax.shard_map(body, mesh=mesh, in_specs=spec, out_specs=spec,
+                                check_vma=False)
+        arg = jax.ShapeDtypeStruct((chunk_size, dim), jnp.float64, sharding=sharding)
+        compiled = compile_for(jax.jit(sharded).lower(arg), devices)
+        if stored is not None and stored.ship is not None and key is not None:
+            write_executable(compiled, stored.ship / key)
     _check_outputs(compiled.out_info, chunk_size)
     return compiled, sharding
+
+
+def chunk_key(stored: StoredModel, exported, share, devices: Sequence[jax.Device]) -> str | None:
+    """The :func:`jaxdobby.programs.executable_key` of the chunk program compiled from the
+    per-device program ``exported`` (for arguments ``share``) over ``devices``: besides that
+    program, it depends on the mesh and the compile options."""
+    cpu = all(d.platform == "cpu" for d in devices)
+    setting = (f"shard_map over {len(devices)} {devices[0].platform} devices, "
+               f"options {sorted(CPU_COMPILER_OPTIONS.items()) if cpu else []}")
+    return executable_key(f"{stored.name}-chunk", exported, [share], setting)
 
 
 CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}

@@ -304,12 +304,17 @@ def default_study_program() -> tuple[Callable, StoredModel, jax.ShapeDtypeStruct
     ``python -m jaxdobby.programs`` ships (:mod:`jaxdobby.programs`)."""
     import jax.numpy as jnp
 
+    row, stored, dim = default_study_model()
+    share = default_chunk(SHIPPED_DEVICES) // SHIPPED_DEVICES
+    return jax.vmap(row), stored, jax.ShapeDtypeStruct((share, dim), jnp.float64)
+
+
+def default_study_model() -> tuple[Callable, StoredModel, int]:
+    """(model of one row, how it is stored, columns) of the default study."""
     config = SobolConfig()
     model = MODELS[config.model]
     space = build_space(config, model)
-    share = default_chunk(SHIPPED_DEVICES) // SHIPPED_DEVICES
-    return (jax.vmap(model.build(space)), stored_model(model, space),
-            jax.ShapeDtypeStruct((share, len(space.names)), jnp.float64))
+    return model.build(space), stored_model(model, space), len(space.names)
 
 
 def stored_model(model: ModelSpec, space: ParameterSpace) -> StoredModel | None:
