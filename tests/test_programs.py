@@ -56,10 +56,16 @@ def test_shipped_executables_of_the_default_configuration_are_current(default_se
     two_cpus = [jax.devices("cpu")[0]] * SHIPPED_DEVICES  # the key reads their count and kind
     keys.append(chunk_key(sobol, exported, share, two_cpus))
     for key in keys:
-        assert key is not None and (programs.SHIPPED / key).exists(), (
+        assert key is not None and programs.executable_variants(key), (
             f"the shipped executable {key} is stale: run `python -m jaxdobby.programs` and "
             "commit jaxdobby/data/programs")
-    assert len(list(programs.SHIPPED.glob("*.xlaexe"))) == 3
+    # every shipped file is a variant of a current key (a stale one would be dead weight),
+    # named after the features it records
+    stems = {key.removesuffix(".xlaexe") for key in keys}
+    for path in programs.SHIPPED.glob("*.xlaexe"):
+        stem, tag, _ = path.name.split(".")
+        assert stem in stems, f"{path.name} is stale: delete it"
+        assert path.name == programs._variant_name(stem, programs.variant_features(path))
 
 
 def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):
@@ -106,12 +112,18 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
     # numbers to round-off, 1e-10 relative as above (the same program and options; the cap
     # only changes which vector instructions XLA's LLVM picks, hence how it contracts
     # multiply-adds; measured ≤ 1e-12 here, 1.3e-11 on the study's chunk program)
-    loaded = []
+    loaded, fits = [], []
     load = programs.shipped_executable
-    monkeypatch.setattr(programs, "shipped_executable",
-                        lambda *a, **k: loaded.append(load(*a, **k)) or loaded[-1])
+
+    def recorded(key, *a, **k):
+        fits.append(any(map(programs.fits_here, programs.executable_variants(key))))
+        loaded.append(load(key, *a, **k))
+        return loaded[-1]
+
+    monkeypatch.setattr(programs, "shipped_executable", recorded)
     shipped, _, _ = stored_report(default_setup, RunOptions())
-    assert len(loaded) == 2 and all(c is not None for c in loaded)
+    # loaded exactly where a variant compiled for this CPU's features ships
+    assert len(loaded) == 2 and [c is not None for c in loaded] == fits
     for key, value in first.items():
         if key == "periodicity_residual":
             assert shipped[key] == pytest.approx(value, rel=0, abs=1e-12), key
@@ -145,16 +157,26 @@ def test_a_program_with_host_callbacks_runs_unstored(tmp_path):
 def test_shipped_executables_are_not_loaded_where_they_do_not_fit(monkeypatch):
     """An executable is machine code for one instruction set: it is loaded only where
     executables_usable() allows (never with JAXDOBBY_SHIPPED_EXECUTABLES=off, never off the
-    CPU backend or on a CPU without x86-64-v3), and a key that ships nothing loads nothing."""
-    shipped = sorted(programs.SHIPPED.glob("*.xlaexe"))
+    CPU backend or on a CPU without x86-64-v3, never on a CPU that lacks one of the features it
+    was compiled for), and a key that ships nothing loads nothing."""
+    shipped = [p.name.split(".")[0] + ".xlaexe" for p in programs.SHIPPED.glob("*.xlaexe")]
     assert shipped
+    if programs.executables_usable():
+        # a CPU without one feature of each variant (its last, alphabetically)
+        variants = programs.executable_variants(shipped[0])
+        lacking = frozenset.intersection(*map(programs.variant_features, variants))
+        fewer = lacking - {sorted(lacking)[-1]}
+        with monkeypatch.context() as m:
+            m.setattr(programs, "host_features", lambda: fewer)
+            assert not any(map(programs.fits_here, variants))
+            assert programs.shipped_executable(shipped[0]) is None
     monkeypatch.setenv("JAXDOBBY_SHIPPED_EXECUTABLES", "off")
     assert not programs.executables_usable()
-    assert programs.shipped_executable(shipped[0].name) is None
+    assert programs.shipped_executable(shipped[0]) is None
     monkeypatch.delenv("JAXDOBBY_SHIPPED_EXECUTABLES")
     monkeypatch.setattr(programs, "_cpu_runs_shipped", lambda: False)
     assert not programs.executables_usable()
-    assert programs.shipped_executable(shipped[0].name) is None
+    assert programs.shipped_executable(shipped[0]) is None
     monkeypatch.setattr(programs, "_cpu_runs_shipped", lambda: True)
     assert programs.executables_usable() == (jax.default_backend() == "cpu")
     assert programs.shipped_executable("nothing-000.xlaexe") is None
@@ -176,9 +198,11 @@ from jaxdobby.sensitivity.command import default_study_model
 row, stored, dim = default_study_model()
 devices = tuple(jax.devices())
 chunk = default_chunk(2)
-loaded = []
+from jaxdobby.programs import executable_variants, fits_here
+loaded, fits = [], []
 load = batch.shipped_executable
 def recorded(*args):
+    fits.append(any(map(fits_here, executable_variants(args[0]))))
     loaded.append(load(*args))
     return loaded[-1]
 batch.shipped_executable = recorded
@@ -193,7 +217,7 @@ worst = max(float(np.max(np.abs(a[k] - b[k]) / np.abs(b[k]))) for k in b
             if k != "ok" and not k.startswith("validity"))
 same = all(np.array_equal(a[k], b[k]) for k in b if k == "ok" or k.startswith("validity"))
 print(json.dumps({"usable": executables_usable(), "worst": worst, "same_flags": same,
-                  "loaded": [c is not None for c in loaded]}))
+                  "loaded": [c is not None for c in loaded], "fits": fits}))
 """
 
 
@@ -215,7 +239,8 @@ def test_shipped_chunk_executable_of_the_default_study_equals_a_compiled_one(tmp
     out = subprocess.run([sys.executable, "-c", _CHUNK_AB], env=env, capture_output=True,
                          text=True, check=True, cwd=tmp_path)
     got = json.loads(out.stdout.strip().splitlines()[-1])
-    if not got["usable"]:
-        pytest.skip("this machine does not load the shipped executables")
+    if not got["usable"] or got["fits"] == [False]:
+        pytest.skip("this machine does not load the shipped executables (none compiled for "
+                    "its CPU's features)")
     assert got["loaded"] == [True], got  # the first from the package, the second compiled
     assert got["same_flags"] and got["worst"] <= 1e-10, got

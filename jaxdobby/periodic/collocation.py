@@ -22,6 +22,7 @@ pairs of float64 arrays (faster on a CPU than complex128 here).
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import jax
 import jax.numpy as jnp
@@ -37,27 +38,75 @@ MATRIX = np.array([[5 / 36, 2 / 9 - _R15 / 15, 5 / 36 - _R15 / 30],
 """aᵢⱼ."""
 WEIGHTS = np.array([5 / 18, 4 / 9, 5 / 18])
 """bⱼ."""
-MATRIX2 = MATRIX @ MATRIX
+
+
+def exact_product(a, b) -> np.ndarray:
+    """a @ b for small real or complex NumPy arrays (1-D or 2-D), each entry the correctly
+    rounded value of the exact sum of the exact products of the float64 inputs.
+
+    The method's constants enter the traced programs as literals, and ``np.matmul`` calls BLAS,
+    whose kernels round differently on different CPUs (fused multiply-adds, summation order):
+    the same source would trace different programs on an Intel and an AMD machine, and a
+    compiled program shipped for one would no longer match the other's key
+    (:mod:`jaxdobby.programs`). Rational arithmetic makes every constant a function of the
+    source alone.
+    """
+    a, b = np.asarray(a), np.asarray(b)
+    left = a if a.ndim == 2 else a[None]
+    right = b if b.ndim == 2 else b[:, None]
+    cplx = np.iscomplexobj(left) or np.iscomplexobj(right)
+
+    def parts(x):
+        z = complex(x)
+        return Fraction(z.real), Fraction(z.imag)
+
+    out = np.zeros((left.shape[0], right.shape[1]), dtype=complex if cplx else float)
+    for i in range(left.shape[0]):
+        for j in range(right.shape[1]):
+            re = im = Fraction(0)
+            for m in range(left.shape[1]):
+                (ar, ai), (br, bi) = parts(left[i, m]), parts(right[m, j])
+                re += ar * br - ai * bi
+                im += ar * bi + ai * br
+            out[i, j] = complex(float(re), float(im)) if cplx else float(re)
+    if b.ndim == 1:
+        out = out[:, 0]
+    return out[0] if a.ndim == 1 else out
+
+
+MATRIX2 = exact_product(MATRIX, MATRIX)
 """(a²)ᵢⱼ: the stage displacements' weights."""
-WEIGHTS2 = WEIGHTS @ MATRIX
+WEIGHTS2 = exact_product(WEIGHTS, MATRIX)
 """(bᵀa)ⱼ: the end displacement's weights."""
 
+GAMMA = 0.21531442311611218
+LAMBDA = complex(0.14234278844194392, 0.1357999257081538)
+T = np.array([[0.07215185205520017, complex(-0.08224123057363067, -0.0601207386193085),
+               complex(-0.08224123057363067, 0.0601207386193085)],
+              [0.11883257874127781, complex(0.053065090742061394, 0.3162050511322916),
+               complex(0.053065090742061394, -0.3162050511322916)],
+              [1.0, 1.0, 1.0]], dtype=complex)
+T_INV = np.array([[5.991698084937801, 1.1392142951557354, 0.43231211378385836],
+                  [complex(-2.9958490424689006, 0.6231066367931157),
+                   complex(-0.5696071475778677, -1.4627798230961568),
+                   complex(0.2838439431080708, 0.12886760063671623)],
+                  [complex(-2.9958490424689006, -0.6231066367931157),
+                   complex(-0.5696071475778677, 1.4627798230961568),
+                   complex(0.2838439431080708, -0.12886760063671623)]], dtype=complex)
+"""a = T diag(γ, λ, λ̄) T⁻¹: real eigenvalue γ, complex λ (Im > 0); T's columns are the
+eigenvectors scaled so that their largest component is 1 (column 0 real, column 2 the conjugate
+of column 1). The exact eigen-decomposition of the exact Butcher matrix (γ = 1/z₀ and
+λ = 1/z̄₁ for the roots z of z³ − 12z² + 60z − 120, the Padé denominator; Hairer & Wanner §IV.8),
+evaluated at 50 digits with mpmath (``mpmath.eig`` and ``T**-1``) and rounded to float64: written
+out rather than computed by LAPACK at import, whose last digits differ between CPUs (see
+:func:`exact_product`). ``tests/test_collocation_constants.py`` holds them against
+``numpy.linalg.eig``."""
 
-def _transform():
-    lam, vec = np.linalg.eig(MATRIX)
-    real = int(np.argmin(np.abs(lam.imag)))
-    cplx = int(np.argmax(lam.imag))
-    v_real = vec[:, real] / vec[np.argmax(np.abs(vec[:, real])), real]
-    t = np.stack([v_real.real, vec[:, cplx], vec[:, cplx].conj()], axis=1)
-    return lam[real].real, lam[cplx], t, np.linalg.inv(t)
 
-
-GAMMA, LAMBDA, T, T_INV = _transform()
-"""a = T diag(γ, λ, λ̄) T⁻¹: real eigenvalue γ, complex λ (Im > 0), column 0 of T real."""
-
-
-def _lagrange(x):
-    return np.array([np.prod([(x - NODES[m]) / (NODES[i] - NODES[m]) for m in range(3) if m != i])
+def _lagrange(x) -> np.ndarray:
+    """ℓᵢ(x), the Lagrange basis on the nodes, in rational arithmetic (see :func:`exact_product`)."""
+    x, c = Fraction(float(x)), [Fraction(float(n)) for n in NODES]
+    return np.array([float(math.prod((x - c[m]) / (c[i] - c[m]) for m in range(3) if m != i))
                      for i in range(3)])
 
 
@@ -78,12 +127,15 @@ def dense_weights(theta) -> tuple[np.ndarray, np.ndarray]:
         (W1, W2), each of shape (len(θ), 3).
     """
     theta = np.atleast_1d(np.asarray(theta, dtype=float))
+    c = [Fraction(float(n)) for n in NODES]
     w1 = np.zeros((theta.size, 3))
     for i in range(3):
-        others = [NODES[m] for m in range(3) if m != i]
-        basis = np.poly1d(others, r=True) / np.prod([NODES[i] - c for c in others])
-        w1[:, i] = np.polyint(basis)(theta)
-    return w1, w1 @ MATRIX
+        a, b = (c[m] for m in range(3) if m != i)
+        scale = (c[i] - a) * (c[i] - b)  # ℓᵢ(s) = (s − a)(s − b) / scale, integrated exactly
+        for n, th in enumerate(theta.tolist()):
+            th = Fraction(th)
+            w1[n, i] = float((th**3 / 3 - (a + b) * th**2 / 2 + a * b * th) / scale)
+    return w1, exact_product(w1, MATRIX)
 
 
 EXTRAPOLATE = np.stack([_lagrange(1.0 + c) for c in NODES])

@@ -45,6 +45,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
 from . import collocation as gl
@@ -112,10 +113,10 @@ def _block_weights():
     stage right-hand side −[K̄ δq + (C̄ + cᵢ h K̄) δv] enters block j as −[σⱼ(K̄δq + C̄δv) +
     h ρⱼ K̄δv], and block j's solution enters δq_{n+1} with h² αⱼ and δv_{n+1} with h βⱼ."""
     t, ti = gl.T, gl.T_INV
-    sigma = ti.sum(axis=1)
-    rho = ti @ gl.NODES
-    alpha = gl.WEIGHTS2 @ t
-    beta = gl.WEIGHTS @ t
+    sigma = gl.exact_product(ti, np.ones(3))  # exact: the same literals on every CPU
+    rho = gl.exact_product(ti, gl.NODES)
+    alpha = gl.exact_product(gl.WEIGHTS2, t)
+    beta = gl.exact_product(gl.WEIGHTS, t)
     return sigma, rho, alpha, beta
 
 

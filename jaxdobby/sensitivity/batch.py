@@ -163,7 +163,7 @@ def _compile(model: Callable, chunk_size: int, dim: int, devices: tuple[jax.Devi
         arg = jax.ShapeDtypeStruct((chunk_size, dim), jnp.float64, sharding=sharding)
         compiled = compile_for(jax.jit(sharded).lower(arg), devices)
         if stored is not None and stored.ship is not None and key is not None:
-            write_executable(compiled, stored.ship / key)
+            write_executable(compiled, stored.ship, key)
     _check_outputs(compiled.out_info, chunk_size)
     return compiled, sharding
 
