@@ -248,26 +248,20 @@ def write_executable(compiled, directory: Path, key: str) -> Path:
     return path
 
 
-def shipped_executable(key: str | None, devices: Sequence | None = None):
-    """The shipped executable ``key`` loaded onto ``devices`` (None: the default device): the
-    first of its :func:`executable_variants` whose compiled features this CPU has
-    (:func:`host_features`); None where none fits or :func:`executables_usable` says no.
+def _bind_lapack() -> None:
+    """A deserialised executable calls jaxlib's LAPACK kernels (Cholesky, eigh, LU) directly,
+    and jaxlib binds them to SciPy's LAPACK on the first *lowering* of a LAPACK operation:
+    without one in this process, the first call of the executable crashes (seen: segmentation
+    fault). Lowering one tiny Cholesky (no compile; ~0.3 s, mostly importing SciPy's LAPACK)
+    binds them."""
+    jax.jit(jnp.linalg.cholesky).lower(jnp.eye(1))
 
-    The package's own files only (``pickle``, and an XLA executable is machine code: never
-    load one from elsewhere)."""
-    if key is None or not executables_usable():
-        return None
-    variants = executable_variants(key)
-    if not variants:
-        return None
+
+def _load_variant(key: str, devices: Sequence | None):
+    """The first variant of ``key`` compiled for this CPU's features, loaded; or None."""
     from jax.experimental.serialize_executable import deserialize_and_load
 
-    # a deserialised executable calls jaxlib's LAPACK kernels (Cholesky, eigh, LU) directly,
-    # and jaxlib binds them to SciPy's LAPACK on the first *lowering* of a LAPACK operation:
-    # without one in this process, the first call of the executable crashes (seen:
-    # segmentation fault). Lowering one tiny Cholesky (no compile) binds them.
-    jax.jit(jnp.linalg.cholesky).lower(jnp.eye(1))
-    for path in variants:
+    for path in executable_variants(key):
         try:
             serialized, in_tree, out_tree = _read_variant(path)
             features = compiled_features(serialized)
@@ -278,6 +272,37 @@ def shipped_executable(key: str | None, devices: Sequence | None = None):
         except Exception:  # noqa: BLE001  (any failure to load: the next, or compile)
             continue
     return None
+
+
+def shipped_executables(keys: Sequence[str | None], devices: Sequence | None = None) -> list:
+    """The shipped executable of each key, loaded onto ``devices`` (None: the default device):
+    the first of its :func:`executable_variants` whose compiled features this CPU has
+    (:func:`host_features`); None where none fits or :func:`executables_usable` says no.
+
+    XLA's loading (rebuilding the optimised HLO module, its buffer assignment and thunks from
+    their protos: it grows with the program's size, not its machine code, ~0.9 s for
+    ``jaxdobby simulate``'s run on 2 cores) runs outside Python's lock: the executables and the
+    LAPACK binding (:func:`_bind_lapack`) load in parallel threads (measured 1.15 s instead of
+    1.43 s for simulate's two).
+
+    The package's own files only (``pickle``, and an XLA executable is machine code: never
+    load one from elsewhere)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    todo = [i for i, key in enumerate(keys) if key is not None and executable_variants(key)]
+    if not todo or not executables_usable():
+        return [None] * len(keys)
+    with ThreadPoolExecutor(len(todo) + 1) as pool:
+        bound = pool.submit(_bind_lapack)
+        host_features()  # before the loads: each reads it
+        loading = {i: pool.submit(_load_variant, keys[i], devices) for i in todo}
+        bound.result()
+        return [loading[i].result() if i in loading else None for i in range(len(keys))]
+
+
+def shipped_executable(key: str | None, devices: Sequence | None = None):
+    """:func:`shipped_executables` of one key."""
+    return shipped_executables([key], devices)[0]
 
 
 class Unstored(NamedTuple):
@@ -314,7 +339,7 @@ def compile_together(programs: Sequence[tuple], compiler_options: dict | None = 
     from concurrent.futures import ThreadPoolExecutor
 
     keys = together_keys(programs, compiler_options)
-    done = [None if ship is not None else shipped_executable(key) for key in keys]
+    done = [None] * len(keys) if ship is not None else shipped_executables(keys)
     todo = [i for i, c in enumerate(done) if c is None]
     lowered = [jax.jit(programs[i][0].call).lower(*map(_spec, programs[i][1])) for i in todo]
     options = compiler_options or None

@@ -113,14 +113,15 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
     # only changes which vector instructions XLA's LLVM picks, hence how it contracts
     # multiply-adds; measured ≤ 1e-12 here, 1.3e-11 on the study's chunk program)
     loaded, fits = [], []
-    load = programs.shipped_executable
+    load = programs.shipped_executables
 
-    def recorded(key, *a, **k):
-        fits.append(any(map(programs.fits_here, programs.executable_variants(key))))
-        loaded.append(load(key, *a, **k))
-        return loaded[-1]
+    def recorded(keys, *a, **k):
+        fits.extend(any(map(programs.fits_here, programs.executable_variants(key)))
+                    for key in keys)
+        loaded.extend(load(keys, *a, **k))
+        return loaded[-len(keys):]
 
-    monkeypatch.setattr(programs, "shipped_executable", recorded)
+    monkeypatch.setattr(programs, "shipped_executables", recorded)
     shipped, _, _ = stored_report(default_setup, RunOptions())
     # loaded exactly where a variant compiled for this CPU's features ships
     assert len(loaded) == 2 and [c is not None for c in loaded] == fits
