@@ -29,14 +29,18 @@ x86-64 CPU with AVX2 (x86-64-v3: Intel since 2013, AMD since 2015). They are com
 XLA's instruction set capped at AVX2 (``--xla_cpu_max_isa``) and used only where
 :func:`executables_usable` finds the CPU backend and such a CPU, and where the executable's
 key (:func:`executable_key`: the exact JAX, jaxlib, program text, compile options and device
-count) matches. XLA also records in each executable every feature of the CPU it was compiled
-on (besides the vector instructions: ``gfni``, ``movdiri``, ``sse4a`` ...), and its loader
-warns, in pages of log, on a CPU that lacks one. An executable is therefore loaded only on a
-CPU with all of its recorded features (:func:`host_features`), and each program may ship in
-several *variants*, one per family of CPU it was compiled on (``<key>.<features>.xlaexe``:
-today an Intel Xeon and an AMD EPYC); elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``,
-the programs compile as before. Measured on 2 cores (Intel Xeon, 2026-12-05): a fresh
-``jaxdobby simulate`` with an empty cache takes 3.2 s with them, 8.1 s compiling.
+count) matches. XLA also records in each executable the features of the CPU it was compiled
+on, and its loader warns ("could lead to SIGILL") on a CPU that lacks one. Features that XLA's
+code never uses (protection keys, cache control, transactional memory...:
+:data:`SYSTEM_FEATURES`) are marked off in the shipped files; an executable is loaded only on a
+CPU with all of its remaining ones (:func:`host_features`: the vector and bit-manipulation
+extensions, and family-specific ones such as AMD's ``sse4a``), and each program may ship in
+several *variants*, one per family of CPU it was compiled on (``<key>.<features>.xlaexe``: today
+an AMD EPYC of AVX2, which also fits the later AMD EPYCs with AVX-512, and, for the report, an
+Intel Xeon); elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as
+before. Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate``
+with an empty cache takes 1.8 s with them, 4.3 s compiling (on the Intel Xeon of 2026-12-05,
+3.2 s and 8.1 s).
 """
 
 from __future__ import annotations
@@ -183,6 +187,36 @@ def executable_key(name: str, exported, specs: Sequence, setting: str) -> str | 
 _FEATURES = re.compile(rb"[+-]64bit(?:,[+-][A-Za-z0-9_.\-]+)+")
 """LLVM's target-feature list as XLA:CPU records it in a serialised executable."""
 
+SYSTEM_FEATURES = frozenset({
+    # operating-system, privileged, cache-control, transactional, random-number and
+    # synchronisation instructions: LLVM emits them only for their intrinsics or inline
+    # assembly, which XLA's kernels do not contain (X86.td, "ISA Extensions")
+    "cldemote", "clflushopt", "clwb", "clzero", "enqcmd", "fsgsbase", "hreset", "invpcid",
+    "movdir64b", "movdiri", "mwaitx", "pconfig", "pku", "prefetchi", "ptwrite", "rdpid",
+    "rdpru", "rdrnd", "rdseed", "rtm", "serialize", "sgx", "shstk", "tsxldtrk", "uintr",
+    "waitpkg", "wbnoinvd", "xsave", "xsavec", "xsaveopt", "xsaves",
+    # tuning flags, not instructions
+    "prefer-no-gather", "prefer-no-scatter"})
+"""CPU features XLA records (from the compile host) that its generated code never uses.
+:func:`without_system_features` marks them off in a shipped executable, so that a CPU of the
+same instruction set lacking one of them (an AMD EPYC without ``pku``, an Intel without
+``rtm``) loads it, and XLA's loader does not warn of a SIGILL that cannot happen. Every other
+recorded feature (vector, bit-manipulation, crypto, ``sse4a``, ``avx10.1``...) is one LLVM may
+select by itself and is required of the CPU that loads the executable."""
+
+
+def without_system_features(serialized: bytes) -> bytes:
+    """A serialised XLA:CPU executable with each of its :data:`SYSTEM_FEATURES` recorded as
+    disabled (``+pku`` → ``-pku``: the same length, so the record's framing is unchanged; the
+    machine code is untouched)."""
+    found = _FEATURES.search(serialized)
+    if found is None:
+        return serialized
+    flags = found.group().split(b",")
+    flags = [b"-" + f[1:] if f[:1] == b"+" and f[1:].decode() in SYSTEM_FEATURES else f
+             for f in flags]
+    return serialized[:found.start()] + b",".join(flags) + serialized[found.end():]
+
 
 def compiled_features(serialized: bytes) -> frozenset[str]:
     """The CPU features (LLVM's names, e.g. ``avx2``, ``sse4a``) enabled in the compilation of
@@ -233,11 +267,20 @@ def _variant_name(key: str, features: frozenset[str]) -> str:
 
 def write_executable(compiled, directory: Path, key: str) -> Path:
     """Serialise a compiled program (``jax.stages.Compiled``) atomically into ``directory`` as
-    the variant of executable ``key`` for this CPU (:func:`executable_variants`;
-    zlib-compressed: object code of a few MB shrinks about sixfold). Returns its path."""
+    the variant of executable ``key`` for this CPU's instruction set (:func:`executable_variants`,
+    :func:`without_system_features`). Returns its path."""
     from jax.experimental.serialize_executable import serialize
 
-    payload = serialize(compiled)
+    return write_variant(directory, key, serialize(compiled))
+
+
+def write_variant(directory: Path, key: str, payload: tuple) -> Path:
+    """Write a serialised executable ``(serialized, in_tree, out_tree)`` of ``key`` atomically
+    into ``directory``, its system features marked off (:func:`without_system_features`), named
+    after the features it then records (zlib-compressed: object code of a few MB shrinks about
+    sixfold). Returns its path."""
+    serialized, in_tree, out_tree = payload
+    payload = (without_system_features(serialized), in_tree, out_tree)
     path = directory / _variant_name(key, compiled_features(payload[0]))
     directory.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=".xlaexe")
@@ -429,10 +472,20 @@ def main() -> None:
                    dataclasses.replace(stored, directory=SHIPPED, ship=SHIPPED))
     current = {path.name.split(".")[0] for path in SHIPPED.glob("*.xlaexe")}
     for name, data in before.items():
-        if name.split(".")[0] in current:
-            (SHIPPED / name).write_bytes(data)
+        stem = name.split(".")[0]
+        if stem in current:  # its system features marked off, if an older file has them
+            payload = pickle.loads(zlib.decompress(data))
+            path = write_variant(SHIPPED, stem + ".xlaexe", payload)
+            if path.name == name:
+                path.write_bytes(data)  # unchanged: the very bytes
         else:
             print(f"removed the stale executable {name}")
+    for stem in current:  # a variant needing more features than another one is dead weight
+        variants = {path: variant_features(path) for path in executable_variants(stem)}
+        for path, features in variants.items():
+            if any(other < features for other in variants.values()):
+                path.unlink()
+                print(f"removed {path.name}: a variant of fewer features fits wherever it does")
     for path in sorted([*SHIPPED.glob("*.jaxexport"), *SHIPPED.glob("*.xlaexe")]):
         print(f"wrote {path.relative_to(PACKAGE.parent)} ({path.stat().st_size / 1e3:.0f} kB)")
 

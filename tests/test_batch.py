@@ -99,7 +99,7 @@ def test_gauss_collocation_is_sixth_order_on_a_forced_damped_oscillator():
 
 
 def random_stage_system(stiffness_diagonal, seed=3):
-    """A random k = 4 system for the stage-solver tests: symmetric positive definite M, damping
+    """A random k-mode system for the stage-solver tests: symmetric positive definite M, damping
     with a skew (gyroscopic) part, K = the given diagonal plus small random coupling."""
     rng = np.random.default_rng(seed)
     k = len(stiffness_diagonal)
@@ -111,14 +111,19 @@ def random_stage_system(stiffness_diagonal, seed=3):
     return rng, mass, damp, stiff
 
 
-def test_stage_solver_solves_the_assembled_stage_system():
+@pytest.mark.parametrize("k", [4, 16])
+def test_stage_solver_solves_the_assembled_stage_system(k):
     """StageSolver (Butcher-diagonalised blocks, inverted once) against numpy's LU solve of the
-    assembled 3k × 3k matrix I⊗M + h a⊗C + h² a²⊗K, for a random k = 4 system with a symmetric
+    assembled 3k × 3k matrix I⊗M + h a⊗C + h² a²⊗K, for a random system with a symmetric
     positive definite M, a damping with a skew (gyroscopic) part and the step of the default
     machine at 1200 r/min; one and eight right-hand sides. Tolerance 1e-12 relative: both are
-    backward stable on a matrix of condition ~10, so they agree to a few ulps times that."""
-    k, h = 4, 0.1 / 432
-    rng, mass, damp, stiff = random_stage_system([4e5, 2e6, 8e6, 2e7])
+    backward stable on a matrix of condition below 10 (6.4 at k = 4, 4.3 at k = 16), so they
+    agree to a few ulps times that. k = 4 runs the unrolled eliminations and products, k = 16 (above
+    collocation.UNROLL_MAX) their loop and dot forms."""
+    assert (k > gl.UNROLL_MAX) == (k == 16)  # both forms are tested
+    h = 0.1 / 432
+    diagonal = [4e5, 2e6, 8e6, 2e7] if k == 4 else np.geomspace(4e5, 2e8, k)
+    rng, mass, damp, stiff = random_stage_system(diagonal)
     a = gl.MATRIX
     big = np.kron(np.eye(3), mass) + h * np.kron(a, damp) + h * h * np.kron(a @ a, stiff)
     solver = gl.StageSolver(jnp.asarray(mass), jnp.asarray(damp), jnp.asarray(stiff), h)

@@ -66,9 +66,30 @@ def test_shipped_executables_of_the_default_configuration_are_current(default_se
         stem, tag, _ = path.name.split(".")
         assert stem in stems, f"{path.name} is stale: delete it"
         assert path.name == programs._variant_name(stem, programs.variant_features(path))
+        # no feature its code cannot use is required of the CPU that loads it
+        assert not programs.variant_features(path) & programs.SYSTEM_FEATURES, path.name
+    for stem in stems:  # and none needs more features than another variant of its program
+        features = list(map(programs.variant_features, programs.executable_variants(stem)))
+        assert not any(a < b for a in features for b in features), stem
 
 
-def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch):
+def test_system_features_are_marked_off_and_nothing_else_changes():
+    """without_system_features flips exactly the recorded '+feature' entries named in
+    SYSTEM_FEATURES to '-feature' (so a serialised executable keeps its length and framing),
+    leaves every other byte as it was, and is idempotent."""
+    record = b"+64bit,+avx2,-avx512f,+pku,+sse4a,+wbnoinvd,+rtm,-xsaves,+fma,+prefer-no-gather"
+    blob = b"\x08\x02head" + record + b"\x12\x04tail+pku"
+    out = programs.without_system_features(blob)
+    assert len(out) == len(blob) and out.endswith(b"tail+pku")  # outside the record: untouched
+    assert programs.compiled_features(out) == {"64bit", "avx2", "sse4a", "fma"}
+    assert programs.compiled_features(blob) - programs.compiled_features(out) == {
+        "pku", "wbnoinvd", "rtm", "prefer-no-gather"}
+    assert programs.without_system_features(out) == out
+    assert programs.without_system_features(b"no record") == b"no record"
+
+
+def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, monkeypatch,
+                                                     capfd):
     """stored_report (an exported program, stored, then read back by a second call with other
     float values) against simulate() and summary() run directly on the same inputs: the same
     computation, but the stored program is compiled at LLVM level 0 (programs.ONE_SHOT) and
@@ -122,7 +143,10 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
         return loaded[-len(keys):]
 
     monkeypatch.setattr(programs, "shipped_executables", recorded)
+    capfd.readouterr()
     shipped, _, _ = stored_report(default_setup, RunOptions())
+    # XLA's loader (C++, on the process's stderr) found every feature the executables require
+    assert "cpu_aot_loader" not in capfd.readouterr().err
     # loaded exactly where a variant compiled for this CPU's features ships
     assert len(loaded) == 2 and [c is not None for c in loaded] == fits
     for key, value in first.items():
