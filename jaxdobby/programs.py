@@ -38,7 +38,8 @@ extensions, and family-specific ones such as AMD's ``sse4a``), and each program 
 several *variants*, one per family of CPU it was compiled on (``<key>.<features>.xlaexe``: today
 an AMD EPYC of AVX2, which also fits the later AMD EPYCs with AVX-512, and, for the report, an
 Intel Xeon); elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as
-before. Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate``
+before. Python's :func:`jaxdobby.simulate.simulate` loads the run's executable too (its result's
+structure ships beside it, ``*.structure``: rebuilding it would mean tracing the run). Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate``
 with an empty cache takes 1.8 s with them, 4.3 s compiling (on the Intel Xeon of 2026-12-05,
 3.2 s and 8.1 s).
 """
@@ -398,6 +399,13 @@ def compile_together(programs: Sequence[tuple], compiler_options: dict | None = 
     return done
 
 
+def shipped_program(name: str, static_key: str, args: Sequence) -> tuple:
+    """(the exported program the package ships for ``name``, ``static_key`` and arguments
+    shaped as ``args``, or None; the path it has or would have)."""
+    path = SHIPPED / program_key(name, static_key, args)
+    return (_read(path) if path.exists() else None), path
+
+
 def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
                    directory: Path | None):
     """The exported program of ``fn`` for arguments shaped as ``args``: read from ``directory``
@@ -452,16 +460,18 @@ def main() -> None:
     _configure_jax()
     from .config import RunOptions
     from .parameters import Setup
-    from .simulate import stored_report
+    from .simulate import stored_report, write_structure
 
     # XLA's machine code differs from one compilation to the next (not its arithmetic): an
     # executable whose key and CPU features are unchanged keeps its old bytes, so that the
     # repository does not take in megabytes of new binaries whenever the sources' fingerprint
     # changes; variants compiled on other CPUs are kept while their key is current
     before = {path.name: path.read_bytes() for path in SHIPPED.glob("*.xlaexe")}
-    for path in [*SHIPPED.glob("*.jaxexport"), *SHIPPED.glob("*.xlaexe")]:
+    for path in [*SHIPPED.glob("*.jaxexport"), *SHIPPED.glob("*.xlaexe"),
+                 *SHIPPED.glob("*.structure")]:
         path.unlink()
     stored_report(Setup(), RunOptions(), directory=SHIPPED, ship=SHIPPED)
+    write_structure(SHIPPED, Setup(), RunOptions())  # what Python's simulate() rebuilds
     import dataclasses
 
     from .sensitivity.batch import chunk_function
@@ -486,7 +496,8 @@ def main() -> None:
             if any(other < features for other in variants.values()):
                 path.unlink()
                 print(f"removed {path.name}: a variant of fewer features fits wherever it does")
-    for path in sorted([*SHIPPED.glob("*.jaxexport"), *SHIPPED.glob("*.xlaexe")]):
+    for path in sorted([*SHIPPED.glob("*.jaxexport"), *SHIPPED.glob("*.xlaexe"),
+                        *SHIPPED.glob("*.structure")]):
         print(f"wrote {path.relative_to(PACKAGE.parent)} ({path.stat().st_size / 1e3:.0f} kB)")
 
 

@@ -19,6 +19,13 @@ Three integrators solve the same equations:
 * ``method="adaptive"``: diffrax's Tsitouras 5(4) with a PID step-size controller, outputs at
   ``n_out`` times — the reference the fast paths are tested against.
 
+**A first answer without compiling.** Called outside any trace with the default options, the
+default sizes and a CPU the package ships an executable for, ``simulate`` runs the compiled
+executable of the command line's run (:func:`shipped_simulation`): ~1.3 s for the first call
+in a new process instead of ~11 s of tracing and compiling (2 cores, 2026-12-06,
+``benchmarks/bench_simulate.py``), whatever the float values. Elsewhere, and under
+``jax.jit``/``jax.grad``/``jax.vmap``, it traces and compiles as usual.
+
 The run is one differentiable function of the float fields of ``machine`` and ``operating``
 (derivatives through the periodic state by the implicit-function theorem). Sizes are static:
 ``steps`` for RK4 is chosen from the model's highest frequency when not given, which needs
@@ -33,6 +40,8 @@ Example::
 """
 
 from __future__ import annotations
+
+import functools
 
 import equinox as eqx
 import jax
@@ -171,9 +180,14 @@ def simulate(machine: Machine | None = None, operating: OperatingPoint | None = 
     operating = OperatingPoint() if operating is None else operating
     lift_plan = check_lift_plan(lift_plan, machine)
     method, steps = resolve_method(machine, operating, method, steps, basis, lift_plan)
+    options = dict(n_out=n_out, rtol=rtol, atol=atol, tolerance=tolerance,
+                   forward_mode=forward_mode)
+    if basis is None and options == _SIMULATE_DEFAULTS:
+        shipped = shipped_simulation(machine, operating, lift_plan, method, steps)
+        if shipped is not None:
+            return shipped
     return _simulate(machine, operating, basis, lift_plan, method=method, steps=steps,
-                     n_out=n_out, rtol=rtol, atol=atol, tolerance=tolerance,
-                     forward_mode=forward_mode)
+                     **options)
 
 
 def check_lift_plan(lift_plan, machine: Machine):
@@ -435,14 +449,8 @@ def report_programs(setup, options) -> tuple:
     plan = check_lift_plan(getattr(options, "lift_plan", None), machine)
     method, steps = resolve_method(machine, operating, options.method, options.steps,
                                    lift_plan=plan)
-    dynamic, static = eqx.partition((machine, operating, plan), eqx.is_array)
-    leaves, tree = jax.tree.flatten(dynamic)
+    simulation, leaves, key = _run_of(machine, operating, plan, method, steps)
     specs = [jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a)) for a in leaves]
-
-    def simulation(*values):
-        m, o, p = eqx.combine(jax.tree.unflatten(tree, values), static)
-        return _simulate_impl(m, o, None, p, method=method, steps=steps, **_SIMULATE_DEFAULTS)
-
     structure = []  # the Simulation's (array structure, non-array part), once known
 
     def run(*values):
@@ -458,5 +466,91 @@ def report_programs(setup, options) -> tuple:
         tree, rest = structure[-1]
         return report_arrays(eqx.combine(jax.tree.unflatten(tree, run_values), rest))
 
-    key = repr((static, tree, method, steps, _SIMULATE_DEFAULTS))
     return ("simulate", run, leaves, key), ("simulate-report", report, key)
+
+
+def _run_of(machine, operating, plan, method, steps):
+    """The command line's run as a function of flat arrays: (simulation: the arrays → the
+    :class:`Simulation` of :func:`simulate`'s defaults, the arrays of ``machine``,
+    ``operating`` and ``plan``, the static key of everything else)."""
+    dynamic, static = eqx.partition((machine, operating, plan), eqx.is_array)
+    leaves, tree = jax.tree.flatten(dynamic)
+
+    def simulation(*values):
+        m, o, p = eqx.combine(jax.tree.unflatten(tree, values), static)
+        return _simulate_impl(m, o, None, p, method=method, steps=steps, **_SIMULATE_DEFAULTS)
+
+    return simulation, leaves, repr((static, tree, method, steps, _SIMULATE_DEFAULTS))
+
+
+STRUCTURE = ".structure"
+"""Suffix of the file, next to a shipped run program, that holds the shapes of its
+:class:`Simulation` (:func:`write_structure`)."""
+
+
+def write_structure(directory, setup, options) -> None:
+    """Write, next to the run program of ``setup`` and ``options`` in ``directory``, the
+    :class:`Simulation` it returns with ``jax.ShapeDtypeStruct`` leaves (a pickle; what
+    :func:`shipped_simulation` rebuilds the result from without tracing the run: ~2 s). For
+    ``python -m jaxdobby.programs``."""
+    import pickle
+
+    from .programs import program_key
+
+    (name, _, leaves, key), _ = report_programs(setup, options)
+    plan = check_lift_plan(getattr(options, "lift_plan", None), setup.machine)
+    method, steps = resolve_method(setup.machine, setup.operating, options.method,
+                                   options.steps, lift_plan=plan)
+    simulation, _, _ = _run_of(setup.machine, setup.operating, plan, method, steps)
+    shape = eqx.filter_eval_shape(simulation, *leaves)
+    path = (directory / program_key(name, key, leaves)).with_suffix(STRUCTURE)
+    path.write_bytes(pickle.dumps(shape))
+
+
+def shipped_simulation(machine, operating, plan, method, steps) -> Simulation | None:
+    """:func:`simulate`'s result (its default options) from the compiled executable of the
+    command line's run that the package ships for this configuration
+    (:mod:`jaxdobby.programs`: the default sizes, laws and method, on the CPUs it ships for):
+    nothing traced or compiled, ~1 s in a new process instead of ~10 s. None where there is no
+    such executable (another configuration, another CPU, ``JAXDOBBY_SHIPPED_EXECUTABLES=off``)
+    or where ``simulate`` is being traced (``jax.jit``, ``jax.grad``, ``jax.vmap``): then
+    :func:`simulate` traces and compiles as usual. The executable is compiled as the command
+    line's (:data:`jaxdobby.programs.ONE_SHOT`, instruction set capped at AVX2): its results
+    equal the traced program's to round-off (``tests/test_programs.py``); it runs in ~0.05 s
+    (0.02 s for a program compiled here at full optimisation)."""
+    if method == "adaptive":
+        return None  # never exported (host callbacks)
+    from . import programs
+
+    _, leaves, key = _run_of(machine, operating, plan, method, steps)
+    if any(isinstance(a, jax.core.Tracer) for a in leaves) or not programs.executables_usable():
+        return None
+    found = _shipped_run(str(programs.SHIPPED), key,
+                         tuple((jnp.shape(a), str(jnp.result_type(a))) for a in leaves))
+    if found is None:
+        return None
+    compiled, arrays, rest = found
+    return eqx.combine(jax.tree.unflatten(arrays, compiled(*leaves)), rest)
+
+
+@functools.cache
+def _shipped_run(shipped: str, key: str, shapes: tuple):
+    """(compiled run, tree of its arrays, the rest of its :class:`Simulation`) of the shipped
+    executable for ``key`` and argument ``shapes``, loaded once per process; or None.
+    ``shipped``: the folder of shipped programs (:data:`jaxdobby.programs.SHIPPED`, read by
+    the caller, so that a test that moves it is not answered from this cache)."""
+    import pickle
+
+    from .programs import ONE_SHOT, shipped_executable, shipped_program, together_keys
+
+    specs = [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in shapes]
+    exported, path = shipped_program("simulate", key, specs)
+    path = path.with_suffix(STRUCTURE)
+    if exported is None or not path.exists():
+        return None
+    compiled = shipped_executable(together_keys([(exported, specs)], ONE_SHOT)[0])
+    if compiled is None:
+        return None
+    shape = pickle.loads(path.read_bytes())  # the package's own file
+    arrays, rest = eqx.partition(shape, lambda x: isinstance(x, jax.ShapeDtypeStruct))
+    return compiled, jax.tree.structure(arrays), rest

@@ -159,6 +159,56 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
         p.name for p in stored}
 
 
+def test_python_simulate_answers_from_the_shipped_run(default_setup, monkeypatch):
+    """simulate() of the default sizes from Python (any float values; here 1100 r/min, 500 N)
+    loads the executable the package ships for the command line's run
+    (jaxdobby.simulate.shipped_simulation) wherever a variant fits this CPU: nothing traced or
+    compiled (the traced path is made to fail). Its Simulation against the traced and compiled
+    one of the same inputs (the shipped executables switched off): the same program at another
+    LLVM level and instruction-set cap, so equal to 1e-10 relative, as in the test above
+    (measured ≤ 4e-12), with the same structure. Under a trace (jit, grad, vmap) the shipped
+    run is never used."""
+    import importlib
+
+    from jaxdobby import Machine, OperatingPoint
+
+    simulation = importlib.import_module("jaxdobby.simulate")
+    machine = Machine.default()
+    op = OperatingPoint.from_users_units(speed_rpm=1100.0, warp_force_n=500.0)
+    (name, run, args, static_key), _ = report_programs(default_setup, RunOptions())
+    run_p = programs.stored_program(name, run, args, static_key=static_key, directory=None)
+    key = programs.together_keys([(run_p, args)], programs.ONE_SHOT)[0]
+    fits = programs.executables_usable() and any(
+        map(programs.fits_here, programs.executable_variants(key)))
+    if fits:
+        with monkeypatch.context() as m:
+            m.setattr(simulation, "_simulate", None)  # called: TypeError
+            got = simulate(machine, op)
+    else:
+        assert simulation.shipped_simulation(machine, op, None, "collocation", 432) is None
+        got = simulate(machine, op)
+    monkeypatch.setenv("JAXDOBBY_SHIPPED_EXECUTABLES", "off")
+    want = simulate(machine, op)
+    assert jax.tree.structure(got) == jax.tree.structure(want)
+    for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+        a, b = np.asarray(a), np.asarray(b)
+        if b.dtype.kind == "f" and b.size > 1 or b.dtype.kind != "f":
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * float(np.max(np.abs(b))))
+    for metric, value in want.metrics.items():
+        assert float(got.metrics[metric]) == pytest.approx(float(value), rel=1e-10), metric
+    monkeypatch.delenv("JAXDOBBY_SHIPPED_EXECUTABLES")
+    seen = []
+
+    def probe(speed):
+        seen.append(simulation.shipped_simulation(
+            machine, OperatingPoint(speed=speed, warp_force=op.warp_force), None,
+            "collocation", 432))
+        return speed
+
+    jax.make_jaxpr(probe)(op.speed)
+    assert seen == [None]
+
+
 def test_a_program_with_host_callbacks_runs_unstored(tmp_path):
     """jax.export does not serialise host callbacks (diffrax's adaptive solver has them:
     `jaxdobby simulate --method adaptive`): such a program is traced and compiled in every run,
