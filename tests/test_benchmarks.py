@@ -123,8 +123,8 @@ def test_bench_simulate_quick(tmp_path):
     assert (tmp_path / data["figure"]).stat().st_size > 1000
 
 
-@pytest.mark.slow  # ~5 min on 2 busy cores with an empty cache: 3 processes compile the batch
-# path and 4 pool workers the model build; the scipy side needs ~10 s per sample even at 1 mode
+@pytest.mark.slow  # ~1 min on 2 cores (56 s, 2026-12-06): 2 processes compile the batch path
+# beside the scipy runs and 4 pool workers the model build; scipy needs ~5 s per sample at 1 mode
 def test_bench_batch_quick(tmp_path):
     pytest.importorskip("jaxdobby.periodic")
     _run("bench_batch.py", tmp_path)
