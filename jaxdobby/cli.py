@@ -96,7 +96,8 @@ def _sweep(ns: argparse.Namespace) -> int:
     values = ns.values if ns.values else STUDIES.get(ns.parameter)
     if values is None:
         raise InputError(f"no default values for '{ns.parameter}': give them with --values")
-    sweep = prepare_sweep(setup, ns.parameter, values, method=options.method)
+    sweep = prepare_sweep(setup, ns.parameter, values, method=options.method,
+                          directory=programs_dir())
     _status(f"sweeping {ns.parameter} over {len(values)} values (the first run compiles)...")
     result = sweep()
     if ns.out:

@@ -2,6 +2,8 @@
 simulate computes, and the package's shipped programs of the default configuration are
 current."""
 
+import importlib
+
 import jax
 import numpy as np
 import pytest
@@ -143,6 +145,8 @@ def test_stored_report_equals_simulate_and_is_reused(tmp_path, default_setup, mo
         return loaded[-len(keys):]
 
     monkeypatch.setattr(programs, "shipped_executables", recorded)
+    # compiled programs are kept per process: start from none, so that these are loaded here
+    monkeypatch.setattr(importlib.import_module("jaxdobby.simulate"), "_REPORT_PROGRAMS", {})
     capfd.readouterr()
     shipped, _, _ = stored_report(default_setup, RunOptions())
     # XLA's loader (C++, on the process's stderr) found every feature the executables require
@@ -168,8 +172,6 @@ def test_python_simulate_answers_from_the_shipped_run(default_setup, monkeypatch
     LLVM level and instruction-set cap, so equal to 1e-10 relative, as in the test above
     (measured ≤ 4e-12), with the same structure. Under a trace (jit, grad, vmap) the shipped
     run is never used."""
-    import importlib
-
     from jaxdobby import Machine, OperatingPoint
 
     simulation = importlib.import_module("jaxdobby.simulate")

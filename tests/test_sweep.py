@@ -16,20 +16,25 @@ KEYS = ("deviation_pp_mm", "deviation_min_mm", "deviation_max_mm", "acceleration
         "stress_max_mpa", "fatigue_safety_factor")
 
 
-def test_vmapped_sweep_equals_single_runs():
+def test_vmapped_sweep_equals_the_runs_one_by_one():
+    """The two ways a float sweep runs (jaxdobby.sweep): one vmapped batch of simulate(), and
+    one value after another through the command line's stored programs (what `jaxdobby
+    simulate` reports for each value, compiled once). Same equations, same step count: equal
+    to round-off of the batched arithmetic and of the stored programs' LLVM level 0."""
     values = [6.0, 8.0]
-    result = run_sweep(Setup(), "thickness", values)
-    for v, row in zip(values, result.rows):
+    batch = run_sweep(Setup(), "thickness", values, batched=True)
+    loop = run_sweep(Setup(), "thickness", values, directory=programs_dir())
+    assert loop.steps == batch.steps == 432
+    for v, a, b in zip(values, batch.rows, loop.rows):
         s = apply(Setup(), {"thickness": v * PARAMETERS["thickness"].scale})
-        # the single run as `jaxdobby simulate` reports it (the command line's stored program:
-        # simulate() and summary() in one program, held to them in test_programs.py)
-        single, _, _ = stored_report(s, RunOptions(steps=result.steps), directory=programs_dir())
-        # Same equations, same step count (the sweep uses the most demanding value's): equal
-        # to round-off of the batched arithmetic (and of the stored program's LLVM level 0).
+        single, _, _ = stored_report(s, RunOptions(), directory=programs_dir())
+        assert b == single  # the loop is `jaxdobby simulate` value by value
         for key in KEYS:
-            np.testing.assert_allclose(row[key], single[key], rtol=1e-9, err_msg=key)
+            np.testing.assert_allclose(a[key], b[key], rtol=1e-9, err_msg=key)
+    np.testing.assert_allclose(batch.series[1].deviation, loop.series[1].deviation, rtol=0,
+                               atol=1e-9 * float(np.ptp(batch.series[1].deviation)))
     # The source study's trend (thicker arm, smaller deviation) holds.
-    assert result.rows[1]["deviation_pp_mm"] < result.rows[0]["deviation_pp_mm"]
+    assert loop.rows[1]["deviation_pp_mm"] < loop.rows[0]["deviation_pp_mm"]
 
 
 def test_sweep_command_writes_table_and_figures(tmp_path, capsys):

@@ -137,7 +137,7 @@ def run_campbell(ns: argparse.Namespace) -> int:
     """``jaxdobby campbell``: the resonance map of the configured machine."""
     import equinox as eqx
 
-    from ..command_line import _status, setup_from_args
+    from ..command_line import _status, programs_dir, setup_from_args
     from ..dobby import build_model
     from ..io import write_json, write_text
     from ..plots import plt
@@ -152,7 +152,8 @@ def run_campbell(ns: argparse.Namespace) -> int:
     if ns.speed is not None:
         _status("note: --speed does not apply: the map sweeps the speed (--values)")
     speeds = list(ns.values) if ns.values else DEFAULT_SPEEDS
-    sweep = prepare_sweep(setup, "speed", speeds, method=options.method)
+    sweep = prepare_sweep(setup, "speed", speeds, method=options.method,
+                          directory=programs_dir())
     band = frequency_band(eqx.filter_jit(build_model)(setup.machine, setup.operating, None),
                           ns.phases)
     _status(f"sweeping the speed over {len(speeds)} values (the first run compiles)...")
