@@ -18,10 +18,13 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
-ORDER = ("compile_time", "suite_time", "suite_compiles", "simulate", "batch", "gradient_cost",
+ORDER = ("compile_time", "commands_cold", "suite_time", "suite_compiles", "simulate", "batch",
+         "gradient_cost",
          "gradient", "sobol_throughput", "batch_profile")
 TITLES = {"compile_time": "The first answer and compile time against modes (`compile_time.py`, "
                           "issue 19)",
+          "commands_cold": "Every command, cold and with the cache filled (`commands_cold.py`, "
+                           "issue 19)",
           "suite_time": "The default test suite (`suite_time.py`, issue 19)",
           "suite_compiles": "Where the suite's time goes: its compilations "
                             "(`suite_compiles.py`, issue 19)",
@@ -40,6 +43,7 @@ From the repository root, with float64 on (the scripts set it) and nothing else 
 
 ```sh
 python benchmarks/compile_time.py        # first jaxdobby simulate, compile time vs modes
+python benchmarks/commands_cold.py       # every command's wall time, cold and cached
 python benchmarks/suite_time.py          # the default test suite, empty caches
 python benchmarks/suite_compiles.py      # the suite's XLA compilations, by program and test
 python benchmarks/bench_simulate.py      # cold/warm simulate vs solve_ivp, work–precision
@@ -51,8 +55,8 @@ taskset -c 0 python benchmarks/batch_profile.py  # ms per sample of each part, o
 python benchmarks/make_readme.py         # this file
 ```
 
-Each script takes `--quick` (the smoke size the tests run; results go to `*_quick.json`,
-ignored here) and `--out DIR`. The scipy side solves the same equations
+The scripts with a smoke size take `--quick` (what `tests/test_benchmarks.py` runs, each
+under a minute on 2 cores; results go to `*_quick.json`, ignored here) and `--out DIR`. The scipy side solves the same equations
 (`benchmarks/scipy_model.py`: the dobby's right-hand side in numpy from jaxdobby's modal
 matrices, equal to `jaxdobby.dobby.vector_field` to ~1e-15; `benchmarks/scipy_steady.py`: the
 periodic steady state with `solve_ivp`); `tests/test_benchmarks.py` checks that equality and

@@ -156,6 +156,16 @@ def test_bench_gradient_quick(tmp_path):
     assert data["derivative_thickness"]["relative_difference"] < 1e-2
 
 
+@pytest.mark.slow  # ~10 s: four fresh processes of the command line
+def test_commands_cold_quick(tmp_path):
+    _run("commands_cold.py", tmp_path)
+    data = json.loads((tmp_path / "commands_cold_quick.json").read_text())
+    _common_keys(data)
+    assert [r["command"] for r in data["rows"]] == ["jaxdobby simulate", "jaxdobby beam"]
+    for r in data["rows"]:
+        assert r["exit_codes"] == [0, 0] and r["cold_s"] > 0 and r["cached_s"] > 0
+
+
 def test_make_readme_reads_results_generically(tmp_path):
     from benchmarks.make_readme import build
 
