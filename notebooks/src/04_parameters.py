@@ -3,8 +3,9 @@
 #
 # The source study varied four parameters one at a time around its default (800 r/min, 690 N
 # peak warp force, 140 mm stroke, 6 mm arm) and reported how the heald frame's displacement
-# deviation and acceleration change. jaxdobby runs each study as one vmapped batch
-# (``jaxdobby sweep``). Its reported trends are printed beside ours.
+# deviation and acceleration change. jaxdobby runs each study value by value through the
+# programs of ``jaxdobby simulate``, compiled once (``jaxdobby sweep``; a long study runs as one
+# vmapped batch instead). Its reported trends are printed beside ours.
 #
 # *Warp force:* the study's force curve always opposed the lift, so a larger force pushed the
 # deviation negative. jaxdobby's default law is the physical one — the yarns pull the frame back
