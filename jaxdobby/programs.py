@@ -38,10 +38,11 @@ extensions, and family-specific ones such as AMD's ``sse4a``), and each program 
 several *variants*, one per family of CPU it was compiled on (``<key>.<features>.xlaexe``: today
 an AMD EPYC of AVX2, which also fits the later AMD EPYCs with AVX-512, and, for the report, an
 Intel Xeon); elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as
-before. Python's :func:`jaxdobby.simulate.simulate` loads the run's executable too (its result's
-structure ships beside it, ``*.structure``: rebuilding it would mean tracing the run). Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate``
-with an empty cache takes 1.8 s with them, 4.3 s compiling (on the Intel Xeon of 2026-12-05,
-3.2 s and 8.1 s).
+before. Python's :func:`jaxdobby.simulate.simulate` loads the run's executable too (its
+result's structure ships beside it, ``*.structure``: rebuilding it would mean tracing the run).
+Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate`` with an
+empty cache takes 1.8 s with them, 4.3 s compiling (on the Intel Xeon of 2026-12-05, 3.2 s and
+8.1 s).
 """
 
 from __future__ import annotations
@@ -301,8 +302,22 @@ def _bind_lapack() -> None:
     jax.jit(jnp.linalg.cholesky).lower(jnp.eye(1))
 
 
+_LOADED: dict = {}
+"""Loaded executables, by (key, this CPU's features, devices): each is loaded once per process
+(``jaxdobby simulate --animate`` runs the shipped run from the command line and again from
+Python's ``simulate()``; a sweep runs it once per value)."""
+
+
 def _load_variant(key: str, devices: Sequence | None):
-    """The first variant of ``key`` compiled for this CPU's features, loaded; or None."""
+    """The first variant of ``key`` compiled for this CPU's features, loaded (once per
+    process: :data:`_LOADED`); or None."""
+    memo = (key, host_features(), None if devices is None else tuple(devices))
+    if memo not in _LOADED:
+        _LOADED[memo] = _load_first_fitting(key, devices)
+    return _LOADED[memo]
+
+
+def _load_first_fitting(key: str, devices: Sequence | None):
     from jax.experimental.serialize_executable import deserialize_and_load
 
     for path in executable_variants(key):

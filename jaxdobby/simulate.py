@@ -459,11 +459,7 @@ def report_programs(setup, options) -> tuple:
     :class:`Simulation`, in order; (name, function of those arrays, static_key) of the report
     of the run, which returns :func:`report_arrays`)."""
     require_x64()
-    machine, operating = setup.machine, setup.operating
-    plan = check_lift_plan(getattr(options, "lift_plan", None), machine)
-    method, steps = resolve_method(machine, operating, options.method, options.steps,
-                                   lift_plan=plan)
-    simulation, leaves, key = _run_of(machine, operating, plan, method, steps)
+    simulation, leaves, key = _run_of_options(setup, options)
     specs = [jax.ShapeDtypeStruct(jnp.shape(a), jnp.result_type(a)) for a in leaves]
     structure = []  # the Simulation's (array structure, non-array part), once known
 
@@ -480,7 +476,20 @@ def report_programs(setup, options) -> tuple:
         tree, rest = structure[-1]
         return report_arrays(eqx.combine(jax.tree.unflatten(tree, run_values), rest))
 
-    return ("simulate", run, leaves, key), ("simulate-report", report, key)
+    return (RUN, run, leaves, key), ("simulate-report", report, key)
+
+
+RUN = "simulate"
+"""The name of the command line's run program (:func:`report_programs`)."""
+
+
+def _run_of_options(setup, options):
+    """:func:`_run_of` for ``setup`` run with ``options``
+    (:class:`~jaxdobby.config.RunOptions`: method, steps, lift plan)."""
+    plan = check_lift_plan(getattr(options, "lift_plan", None), setup.machine)
+    method, steps = resolve_method(setup.machine, setup.operating, options.method,
+                                   options.steps, lift_plan=plan)
+    return _run_of(setup.machine, setup.operating, plan, method, steps)
 
 
 def _run_of(machine, operating, plan, method, steps):
@@ -511,13 +520,9 @@ def write_structure(directory, setup, options) -> None:
 
     from .programs import program_key
 
-    (name, _, leaves, key), _ = report_programs(setup, options)
-    plan = check_lift_plan(getattr(options, "lift_plan", None), setup.machine)
-    method, steps = resolve_method(setup.machine, setup.operating, options.method,
-                                   options.steps, lift_plan=plan)
-    simulation, _, _ = _run_of(setup.machine, setup.operating, plan, method, steps)
+    simulation, leaves, key = _run_of_options(setup, options)
     shape = eqx.filter_eval_shape(simulation, *leaves)
-    path = (directory / program_key(name, key, leaves)).with_suffix(STRUCTURE)
+    path = (directory / program_key(RUN, key, leaves)).with_suffix(STRUCTURE)
     path.write_bytes(pickle.dumps(shape))
 
 
@@ -558,7 +563,7 @@ def _shipped_run(shipped: str, key: str, shapes: tuple):
     from .programs import ONE_SHOT, shipped_executable, shipped_program, together_keys
 
     specs = [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in shapes]
-    exported, path = shipped_program("simulate", key, specs)
+    exported, path = shipped_program(RUN, key, specs)
     path = path.with_suffix(STRUCTURE)
     if exported is None or not path.exists():
         return None
