@@ -16,14 +16,18 @@ change of the code therefore makes a new key — a stale program is never used, 
 
 Programs of the default configuration ship in the package (``jaxdobby/data/programs``, made by
 ``python -m jaxdobby.programs``): ``jaxdobby simulate``'s two (the run and its report,
-compiled side by side: :func:`compile_together`) and the per-device program of
-the default ``jaxdobby sobol`` study on a 2-core CPU (:mod:`jaxdobby.sensitivity.batch`), so
-that even the first run with an empty cache skips tracing when the installed JAX is the one
-they were made with; ``tests/test_programs.py`` checks that they are current.
+compiled side by side: :func:`compile_together`), the per-device program of
+the default ``jaxdobby sobol`` study on a 2-core CPU (:mod:`jaxdobby.sensitivity.batch`) and a
+plain ``jaxdobby optimize``'s three (its values, the batched scan of its starting designs and
+the reverse-mode gradient: :class:`jaxdobby.optimize.objective.Evaluator`), so that even the
+first run with an empty cache skips tracing when the installed JAX is the one they were made
+with; ``tests/test_programs.py`` checks that they are current. Commands whose programs depend
+on what the user asks for (``jaxdobby loom``'s weave, another design study) keep theirs in the
+cache folder through :func:`stored_call`: traced once, compiled once per process.
 
 **Shipped executables.** With the tracing skipped, the first run still waits for XLA to
 compile (on 2 cores, ~5 s for ``jaxdobby simulate``'s two programs, ~10 s for the study's).
-The same three programs therefore also ship *compiled* (``*.xlaexe``:
+The same programs therefore also ship *compiled* (``*.xlaexe``:
 ``jax.experimental.serialize_executable``), for the machines most users have: Linux on an
 x86-64 CPU with AVX2 (x86-64-v3: Intel since 2013, AMD since 2015). They are compiled with
 XLA's instruction set capped at AVX2 (``--xla_cpu_max_isa``) and used only where
@@ -37,7 +41,9 @@ CPU with all of its remaining ones (:func:`host_features`: the vector and bit-ma
 extensions, and family-specific ones such as AMD's ``sse4a``), and each program may ship in
 several *variants*, one per family of CPU it was compiled on (``<key>.<features>.xlaexe``: today
 an AMD EPYC of AVX2, which also fits the later AMD EPYCs with AVX-512, and, for the report, an
-Intel Xeon); elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as
+Intel Xeon; ``jaxdobby optimize``'s were compiled on an AMD EPYC whose AVX2 level also has
+``avxvnni`` and ``gfni``, so they load only on such CPUs until another machine adds its
+variant); elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as
 before. Python's :func:`jaxdobby.simulate.simulate` loads the run's executable too (its
 result's structure ships beside it, ``*.structure``: rebuilding it would mean tracing the run).
 Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate`` with an
@@ -455,6 +461,70 @@ def stored_program(name: str, fn: Callable, args: Sequence, *, static_key: str,
     return exported
 
 
+_CALLS: dict = {}
+"""The compiled programs of :func:`stored_call`, by program and compile options: each is
+compiled (or loaded) once per process."""
+
+
+def stored_call(name: str, fn: Callable, args: Sequence, *, static_key: str = "",
+                directory: Path | None = None, compiler_options: dict | None = None,
+                ship: Path | None = None):
+    """``fn(*args)`` through its stored program (:func:`stored_program`), compiled once per
+    process (:func:`compile_together`: the package's shipped executable where there is one).
+
+    The arrays among the leaves of ``args`` (any pytrees: equinox modules, dicts) are the
+    program's inputs; everything else in them (strings, numbers, static fields, the trees'
+    structure) is part of the program's key, with ``static_key`` (a text describing what
+    ``fn`` closes over). A later call with other arrays of the same shapes runs the compiled
+    program again; a later process reads the traced program from ``directory`` (or the
+    package's) instead of tracing ``fn``. ``fn`` must return a pytree of standard containers
+    of arrays.
+
+    Args:
+        name: the program's name (a file-name prefix).
+        fn: the function; ``args``: its arguments.
+        static_key: what else the program depends on.
+        directory: where programs are stored; None: only the shipped ones are read.
+        compiler_options: XLA options of the compilation (e.g. :data:`ONE_SHOT`).
+        ship: where to write the compiled executable (``python -m jaxdobby.programs``).
+    """
+    flat, leaves, specs, key = _flattened(name, fn, args, static_key)
+    memo = (program_key(name, key, specs), repr(sorted((compiler_options or {}).items())),
+            str(directory), str(SHIPPED), executables_usable())
+    compiled = None if ship is not None else _CALLS.get(memo)
+    if compiled is None:
+        exported = stored_program(name, flat, specs, static_key=key, directory=directory)
+        compiled = compile_together([(exported, specs)], compiler_options, ship=ship)[0]
+        if ship is None:
+            _CALLS[memo] = compiled
+    return compiled(*leaves)
+
+
+def call_program(name: str, fn: Callable, args: Sequence, *, static_key: str = "",
+                 directory: Path | None = None) -> tuple:
+    """(the exported program, its argument specs, its file name: :func:`program_key`) that
+    :func:`stored_call` runs for these arguments, without compiling it (for
+    :func:`together_keys`)."""
+    flat, _, specs, key = _flattened(name, fn, args, static_key)
+    return (stored_program(name, flat, specs, static_key=key, directory=directory), specs,
+            program_key(name, key, specs))
+
+
+def _flattened(name: str, fn: Callable, args: Sequence, static_key: str) -> tuple:
+    """(fn of the flat arrays, the arrays, their specs, the static key) of a call."""
+    import equinox as eqx
+
+    dynamic, static = eqx.partition(tuple(args), eqx.is_array)
+    leaves, tree = jax.tree.flatten(dynamic)
+    leaves = [jnp.asarray(a) for a in leaves]
+
+    def flat(*values):
+        return fn(*eqx.combine(jax.tree.unflatten(tree, values), static))
+
+    flat.__name__ = flat.__qualname__ = name.replace("-", "_")  # its executable's name
+    return flat, leaves, [_spec(a) for a in leaves], repr((static, tree, static_key))
+
+
 def main() -> None:
     """Make the shipped programs and executables of the default configuration
     (``python -m jaxdobby.programs``).
@@ -495,6 +565,9 @@ def main() -> None:
     row, stored, dim = default_study_model()
     chunk_function(row, default_chunk(SHIPPED_DEVICES), dim, jax.devices()[:SHIPPED_DEVICES],
                    dataclasses.replace(stored, directory=SHIPPED, ship=SHIPPED))
+    from .optimize.command import ship_programs
+
+    ship_programs(SHIPPED)  # jaxdobby optimize's: values, the scan of starts, the gradient
     current = {path.name.split(".")[0] for path in SHIPPED.glob("*.xlaexe")}
     for name, data in before.items():
         stem = name.split(".")[0]

@@ -2,8 +2,10 @@
 simulate computes, and the package's shipped programs of the default configuration are
 current."""
 
+import functools
 import importlib
 
+import equinox as eqx
 import jax
 import numpy as np
 import pytest
@@ -38,7 +40,28 @@ def test_shipped_program_of_the_default_configuration_is_current(default_setup):
         assert (programs.SHIPPED / key).exists(), (
             f"the shipped program {key} is stale: run `python -m jaxdobby.programs` and "
             "commit jaxdobby/data/programs")
-    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 3
+    # jaxdobby optimize's three (values, the scan of its starts, the gradient): the
+    # evaluator reads each from the shipped ones, or traces it if it is stale
+    for _, _, _, file in optimize_programs():
+        assert (programs.SHIPPED / file).exists(), (
+            f"the shipped program {file} is stale: run `python -m jaxdobby.programs` and "
+            "commit jaxdobby/data/programs")
+    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 6
+
+
+@functools.cache
+def optimize_evaluator():
+    """The evaluator of a plain `jaxdobby optimize` and its study (compiling, or loading, only
+    the values the evaluator starts with)."""
+    from jaxdobby.optimize.command import default_evaluator
+
+    return default_evaluator()
+
+
+def optimize_programs():
+    """(exported, specs, options, file name) of a plain `jaxdobby optimize`'s programs."""
+    evaluator, study = optimize_evaluator()
+    return evaluator.programs(study.starts)
 
 
 def test_shipped_executables_of_the_default_configuration_are_current(default_setup):
@@ -57,6 +80,8 @@ def test_shipped_executables_of_the_default_configuration_are_current(default_se
                                        directory=None)
     two_cpus = [jax.devices("cpu")[0]] * SHIPPED_DEVICES  # the key reads their count and kind
     keys.append(chunk_key(sobol, exported, share, two_cpus))
+    for program, specs, options, _ in optimize_programs():
+        keys += programs.together_keys([(program, specs)], options)
     for key in keys:
         assert key is not None and programs.executable_variants(key), (
             f"the shipped executable {key} is stale: run `python -m jaxdobby.programs` and "
@@ -321,3 +346,49 @@ def test_shipped_chunk_executable_of_the_default_study_equals_a_compiled_one(tmp
                     "its CPU's features)")
     assert got["loaded"] == [True], got  # the first from the package, the second compiled
     assert got["same_flags"] and got["worst"] <= 1e-10, got
+
+
+def test_stored_call_keys_on_static_parts_and_stores_the_program(tmp_path, monkeypatch):
+    """stored_call: the arrays among its arguments are the program's inputs, everything else
+    (strings, ints, a module's static fields) is part of its key. Values of the same shapes
+    run the same compiled program; another static value is another program; a new process
+    (here: the per-process table emptied) reads the stored program instead of tracing."""
+    monkeypatch.setattr(programs, "SHIPPED", tmp_path / "shipped")  # none shipped
+    traced = []
+
+    def fn(setup, x, power):
+        traced.append(power)
+        return {"y": setup.operating.speed * x**power, "n": x.sum()}
+
+    s = Setup()
+    x = np.arange(3.0)
+    got = programs.stored_call("test-call", fn, (s, x, 2), directory=tmp_path)
+    speed = float(s.operating.speed)
+    np.testing.assert_allclose(got["y"], speed * x**2, rtol=1e-15)  # exact arithmetic here
+    again = programs.stored_call("test-call", fn, (s, x + 1.0, 2), directory=tmp_path)
+    np.testing.assert_allclose(again["y"], speed * (x + 1.0)**2, rtol=1e-15)
+    assert traced == [2]  # the same program for other values
+    cubed = programs.stored_call("test-call", fn, (s, x, 3), directory=tmp_path)
+    np.testing.assert_allclose(cubed["y"], speed * x**3, rtol=1e-15)
+    assert traced == [2, 3] and len(list(tmp_path.glob("test-call-*.jaxexport"))) == 2
+    monkeypatch.setattr(programs, "_CALLS", {})
+    programs.stored_call("test-call", fn, (s, x, 2), directory=tmp_path)
+    assert traced == [2, 3]  # read back, not traced
+
+
+def test_optimize_values_through_the_shipped_programs_equal_a_traced_solve():
+    """`jaxdobby optimize`'s evaluator runs the package's stored programs (the default study's
+    ship compiled); its values equal those of the same steady-state batch traced and compiled
+    here, to round-off (1e-10 relative: XLA's optimisation levels differ, the arithmetic does
+    not)."""
+    from jaxdobby.optimize.objective import batch_values
+
+    evaluator, study = optimize_evaluator()
+    _, values = evaluator.value(study.space.initial)
+    want = eqx.filter_jit(batch_values)(study.space, study.space.initial, evaluator.speeds,
+                                        evaluator.steps)
+    for name in ("deviation", "deviation_rms", "acceleration", "deviation_pp",
+                 "acceleration_pp"):
+        np.testing.assert_allclose(values[name], np.asarray(want[name]), rtol=1e-10,
+                                   err_msg=name)
+    assert np.all(values["converged"] == 1.0)

@@ -284,6 +284,37 @@ def build_study(ns: argparse.Namespace):
                  settings=settings, gradient=gradient, steps=cycle_steps, starts=starts)
 
 
+def default_study():
+    """The :class:`~jaxdobby.optimize.study.Study` of a plain ``jaxdobby optimize`` (every flag
+    at its default)."""
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    return build_study(p.parse_args([]))
+
+
+def default_evaluator(directory=None, ship=None):
+    """(the :class:`~jaxdobby.optimize.objective.Evaluator` of :func:`default_study`, the
+    study); ``directory``, ``ship``: as the evaluator's."""
+    from .objective import Evaluator
+
+    study = default_study()
+    return Evaluator(study.space, study.objective, steps=study.steps, mode=study.gradient,
+                     directory=directory, ship=ship), study
+
+
+def ship_programs(directory) -> None:
+    """Compile the programs of a plain ``jaxdobby optimize`` into ``directory`` (traced
+    programs and executables; ``python -m jaxdobby.programs``), running each once."""
+    import numpy as np
+
+    from .study import start_candidates
+
+    evaluator, study = default_evaluator(directory, ship=directory)  # compiles the values
+    if study.starts > 1:
+        evaluator.values_many(start_candidates(np.asarray(study.space.initial), study.starts))
+    evaluator.value_and_grad(study.space.initial)
+
+
 def _check_start(space, jnp) -> None:
     """The starting design must lie in the box (it is not moved silently)."""
     import numpy as np

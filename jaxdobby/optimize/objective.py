@@ -38,7 +38,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -46,6 +45,7 @@ from jax import Array
 from jax.scipy.special import logsumexp
 
 from ..periodic import DEFAULT_STEPS
+from ..programs import ONE_SHOT, call_program, stored_call
 from ..metrics import rms, smooth_peak_to_peak
 from ..simulate import _simulate
 from .design import DesignSpace
@@ -130,12 +130,10 @@ def gradient_mode(mode: str, n_variables: int) -> str:
     return mode
 
 
-@eqx.filter_jit
 def _values(space, u, speeds, steps):
     return batch_values(space, u, speeds, steps)
 
 
-@eqx.filter_jit
 def _values_many(space, us, speeds, steps):
     return jax.vmap(lambda u: batch_values(space, u, speeds, steps))(us)
 
@@ -145,13 +143,11 @@ def _objective(space, u, speeds, steps, objective, reference, reverse_only=False
     return combine(objective, values, reference), values
 
 
-@eqx.filter_jit
 def _reverse(space, u, speeds, steps, objective, reference):
     return jax.value_and_grad(_objective, argnums=1, has_aux=True)(
         space, u, speeds, steps, objective, reference, True)
 
 
-@eqx.filter_jit
 def _forward(space, u, speeds, steps, objective, reference):
     def fn(x):
         j, values = _objective(space, x, speeds, steps, objective, reference)
@@ -161,11 +157,23 @@ def _forward(space, u, speeds, steps, objective, reference):
     return (j, values), grad
 
 
+PROGRAMS = {"values": (_values, ONE_SHOT), "values-many": (_values_many, ONE_SHOT),
+            "reverse": (_reverse, None), "forward": (_forward, None)}
+"""The evaluator's programs (:func:`jaxdobby.programs.stored_call`, names prefixed
+``optimize-``) and their XLA options: the values, run a few times per study, at LLVM's
+optimisation level 0 (:data:`jaxdobby.programs.ONE_SHOT`: quicker to compile); the gradients,
+run at every iteration, fully optimised."""
+
+
 class Evaluator:
     """J(u), its gradient and the per-speed values of a study.
 
-    The compiled functions are module-level and keyed on the static settings (variables,
-    number of speeds, steps, objective, mode), so evaluators of the same kind share them.
+    Each of its programs (:data:`PROGRAMS`) is a stored program
+    (:func:`jaxdobby.programs.stored_call`), keyed on the static settings (variables, number
+    of speeds, steps, objective, mode) and the shapes: traced once and kept in ``directory``
+    (a later process reads it instead of tracing), compiled once per process (the package
+    ships the default study's compiled, :mod:`jaxdobby.programs`), and shared by evaluators of
+    the same kind.
 
     Args:
         space: the design space.
@@ -173,10 +181,13 @@ class Evaluator:
         steps: collocation steps per cycle (default 432,
             :data:`jaxdobby.periodic.DEFAULT_STEPS`).
         mode: gradient mode (``auto``, ``forward``, ``reverse``).
+        directory: where the programs are stored (the command line's programs folder); None:
+            only the shipped ones are read.
+        ship: where to write the compiled executables (``python -m jaxdobby.programs``).
     """
 
     def __init__(self, space: DesignSpace, objective: Objective, steps: int | None = None,
-                 mode: str = "auto"):
+                 mode: str = "auto", *, directory=None, ship=None):
         if objective.metric not in OBJECTIVES:
             raise ValueError(f"objective must be one of {OBJECTIVES}, got {objective.metric!r}")
         if objective.aggregate not in AGGREGATES:
@@ -185,11 +196,38 @@ class Evaluator:
         self.speeds = jnp.asarray(objective.speeds, dtype=float)
         self.steps = DEFAULT_STEPS if steps is None else int(steps)
         self.mode = gradient_mode(mode, space.size)
-        # The compiled functions take the objective as a static (hashed) argument; the speeds
-        # travel as the traced array above, so a study at another speed reuses the compilation.
+        self.directory, self.ship = directory, ship
+        # The programs take the objective as a static argument (part of their key); the speeds
+        # travel as the array above, so a study at another speed reuses the compilation.
         self._static = dataclasses.replace(objective, speeds=())
-        start = _values(space, space.initial, self.speeds, self.steps)
+        start = self._run("values", space.initial)
         self.reference = {k: start[k] for k in ("deviation", "deviation_rms", "acceleration")}
+
+    def _arguments(self, name: str, u, space: DesignSpace | None = None) -> tuple:
+        """The arguments of program ``name`` (:data:`PROGRAMS`) at ``u``."""
+        args = (self.space if space is None else space, jnp.asarray(u), self.speeds, self.steps)
+        return args + ((self._static, self.reference) if name in GRADIENT_MODES else ())
+
+    def _run(self, name: str, u, space: DesignSpace | None = None):
+        fn, options = PROGRAMS[name]
+        return stored_call(f"optimize-{name}", fn, self._arguments(name, u, space),
+                           directory=self.directory, compiler_options=options, ship=self.ship)
+
+    def programs(self, starts: int = 1) -> list[tuple]:
+        """(exported program, argument specs, XLA options, file name) of every program a
+        study from ``starts`` starting designs runs (the values, the scan of the starts if
+        more than one, the gradient), without compiling them: what the shipped programs' and
+        executables' keys are made of (:func:`jaxdobby.programs.together_keys`)."""
+        names = ["values"] + (["values-many"] if starts > 1 else []) + [self.mode]
+        out = []
+        for name in names:
+            u = jnp.zeros((starts, self.space.size)) if name == "values-many" else self.space.initial
+            fn, options = PROGRAMS[name]
+            exported, specs, file = call_program(f"optimize-{name}", fn,
+                                                 self._arguments(name, u),
+                                                 directory=self.directory)
+            out.append((exported, specs, options, file))
+        return out
 
     def value(self, u: Array, basis: Array | str | None = None
               ) -> tuple[float, dict[str, np.ndarray]]:
@@ -197,18 +235,16 @@ class Evaluator:
         an array, or ``"own"`` (the design's own modes: the modal model that
         ``jaxdobby simulate`` runs, up to round-off)."""
         space = self.space if basis is None else dataclasses.replace(self.space, basis=basis)
-        values = _values(space, jnp.asarray(u), self.speeds, self.steps)
+        values = self._run("values", u, space)
         j = combine(self.objective, values, self.reference)
         return float(j), {k: np.asarray(v) for k, v in values.items()}
 
     def values_many(self, us: Array) -> np.ndarray:
         """J at every row of ``us`` (m, n), as one vmapped batch of m × speeds solves."""
-        values = _values_many(self.space, jnp.asarray(us), self.speeds, self.steps)
+        values = self._run("values-many", us)
         return np.asarray(jax.vmap(lambda v: combine(self.objective, v, self.reference))(values))
 
     def value_and_grad(self, u: Array) -> tuple[float, np.ndarray, dict[str, np.ndarray]]:
         """J(u), ∇J(u) (shape (n,)) and the per-speed values."""
-        fn = _reverse if self.mode == "reverse" else _forward
-        (j, values), grad = fn(self.space, jnp.asarray(u), self.speeds, self.steps,
-                               self._static, self.reference)
+        (j, values), grad = self._run(self.mode, u)
         return float(j), np.asarray(grad), {k: np.asarray(v) for k, v in values.items()}

@@ -138,6 +138,7 @@ def _animate(ns, setup, plan: np.ndarray, strokes_mm: np.ndarray) -> Path:
 
 
 def run(ns: argparse.Namespace, setup_from_args) -> int:
+    from ..command_line import programs_dir
     from ..io import write_json, write_text
     from ..validity import tally, tally_lines
     from .loom import run_frames
@@ -156,8 +157,10 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
         print(f"  frames solved: {done}/{total}", file=sys.stderr, flush=True)
 
     print(f"solving {plan.shape[1]} frames over a repeat of {plan.shape[0]} picks (one vmapped "
-          "batch; the first run compiles it)...", file=sys.stderr, flush=True)
-    rows = run_frames(setup.machine, setup.operating, plan, strokes * 1e-3, progress=progress)
+          "batch, compiled in each new process; traced only the first time)...",
+          file=sys.stderr, flush=True)
+    rows = run_frames(setup.machine, setup.operating, plan, strokes * 1e-3, progress=progress,
+                      directory=programs_dir())
     records = [frame_record(r) for r in rows]
     speed_rpm = float(setup.operating.speed) * 60.0 / (2.0 * np.pi)
     warned = tally((r["frame"], r["warnings"]) for r in records)

@@ -19,13 +19,13 @@ Each moving frame carries the validity warnings of a single run (:func:`frame_wa
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine, OperatingPoint
+from ..programs import ONE_SHOT, stored_call
 from ..simulate import simulate
 from ..stroke import arc_length_for_stroke
 from ..validity import validity_arrays, warnings_of
@@ -72,7 +72,6 @@ def _row(run) -> dict:
                 **validity_arrays(run))
 
 
-@eqx.filter_jit
 def _batch(machine, operating, plans, positions):
     def one(plan, s):
         return _row(_simulate_frame(machine, operating, plan, s))
@@ -81,11 +80,14 @@ def _batch(machine, operating, plans, positions):
 
 
 def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, strokes_m,
-               progress=None) -> list[dict]:
+               progress=None, *, directory=None) -> list[dict]:
     """Per frame (SI): the metrics of :func:`simulate` over the repeat, the per-pick ones, the
     deviation series; ``plan`` (picks, frames) of 0/1, ``strokes_m`` (frames,) [m].
 
-    ``progress(done, total)`` is called after each chunk of :data:`CHUNK` frames."""
+    ``progress(done, total)`` is called after each chunk of :data:`CHUNK` frames. The batch
+    of a chunk is a stored program (:func:`jaxdobby.programs.stored_call`, kept in
+    ``directory``: a later run of a weave of as many picks and moving frames skips tracing
+    it), compiled once per process."""
     plan = np.asarray(plan, dtype=float)
     frames = plan.shape[1]
     positions = joint_positions(machine, strokes_m)
@@ -95,7 +97,9 @@ def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, st
         idx = moving[start:start + CHUNK]
         # pad the chunk to a fixed size (one compiled program) by repeating its last frame
         pad = idx + [idx[-1]] * (min(CHUNK, len(moving)) - len(idx))
-        out = _batch(machine, operating, jnp.asarray(plan[:, pad].T), jnp.asarray(positions[pad]))
+        out = stored_call("loom-frames", _batch, (machine, operating, jnp.asarray(plan[:, pad].T),
+                                                  jnp.asarray(positions[pad])),
+                          directory=directory, compiler_options=ONE_SHOT)
         out = jax.tree.map(np.asarray, out)
         for j, i in enumerate(idx):
             rows[i] = {k: v[j] for k, v in out.items()}
