@@ -83,10 +83,12 @@ def run(ns: argparse.Namespace, setup_from_args) -> int:
     bounds = parse_bounds(ns.bounds, ns.fit)
     parameterisation(setup, ns.fit, bounds)  # every check before the long part
     check_length(meas, float(cycle_period(setup.operating.speed)))
-    print("identifying (the first run compiles: a few minutes)...", file=sys.stderr, flush=True)
+    print("identifying (compiling the fit's programs first: about a minute on 2 cores; their "
+          "tracing is stored for the next run)...", file=sys.stderr, flush=True)
     result = identify(setup, meas, ns.fit, options=options, starts=ns.starts, spread=ns.spread,
                       bounds=bounds, seed=ns.seed,
-                      progress=lambda line: print(line, file=sys.stderr, flush=True))
+                      progress=lambda line: print(line, file=sys.stderr, flush=True),
+                      directory=programs_dir())
     print("checking the identified machine against the model's validity limits...",
           file=sys.stderr, flush=True)
     summ = summary(result, setup_warnings(result.setup, options, directory=programs_dir()))

@@ -118,8 +118,9 @@ def _starts(par: Parameterisation, starts: int, spread: float, seed: int) -> np.
 class _Lanes:
     """The outer Levenberg–Marquardt state of every start (numpy, lane-wise)."""
 
-    def __init__(self, setup, par, method, steps, z):
+    def __init__(self, setup, par, method, steps, z, directory=None):
         self.setup, self.par, self.method, self.steps = setup, par, method, steps
+        self.directory = directory
         self.data: Problem | None = None
         self.lower, self.upper = jnp.asarray(par.lower), jnp.asarray(par.upper)
         self.z = z
@@ -127,17 +128,17 @@ class _Lanes:
 
     def grids(self, z):
         _, grid, dgrid = cycle_grids(self.setup, self.par.names, self.par.log, self.method,
-                                     self.steps, jnp.asarray(z))
+                                     self.steps, jnp.asarray(z), directory=self.directory)
         return fourier(grid), jnp.moveaxis(fourier(jnp.moveaxis(dgrid, -1, -2)), -2, -1)
 
     def inner(self, coef, dcoef, z, mu, v0, scan=False):
         out = inner(coef, dcoef, jnp.asarray(z), jnp.asarray(mu), self.lower, self.upper,
-                    jnp.asarray(v0), jnp.asarray(scan), self.data)
+                    jnp.asarray(v0), jnp.asarray(scan), self.data, directory=self.directory)
         return tuple(np.asarray(a) for a in out)
 
     def full(self, v0):
         out = full(self.coef, self.dcoef, jnp.asarray(self.z), self.lower, self.upper,
-                   jnp.asarray(v0), self.data)
+                   jnp.asarray(v0), self.data, directory=self.directory)
         return tuple(np.asarray(a) for a in out)
 
 
@@ -184,7 +185,7 @@ def _least_squares(lanes: _Lanes, max_iterations: int, progress=None):
 
 def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | None = None,
              starts: int = 1, spread: float = 0.5, bounds=None, seed: int = 0,
-             max_iterations: int = 40, progress=None) -> Identified:
+             max_iterations: int = 40, progress=None, directory=None) -> Identified:
     """Fit the parameters ``keys`` (TOML keys) of ``setup`` to the measured trace.
 
     Args:
@@ -199,6 +200,9 @@ def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | Non
         seed: of the random starts.
         max_iterations: outer Levenberg–Marquardt iterations at most.
         progress: optional callable receiving one line per iteration.
+        directory: where the fit's programs are stored (the command line's programs folder:
+            a later fit of the same configuration, trace length and starts skips tracing
+            them; :func:`jaxdobby.programs.stored_call`); None: not stored.
     """
     from ..modulator import cycle_period
     from .measurement import check_length
@@ -213,7 +217,7 @@ def identify(setup: Setup, meas: Measurement, keys, *, options: RunOptions | Non
         sigma[0] = float(np.sqrt(np.mean(meas.acceleration ** 2)))
     if meas.position is not None:
         sigma[1] = float(np.std(meas.position / MM)) or 1.0
-    lanes = _Lanes(setup, par, method, steps, _starts(par, starts, spread, seed))
+    lanes = _Lanes(setup, par, method, steps, _starts(par, starts, spread, seed), directory)
     n_coef = lanes.coef.shape[-1]
     lanes.data = problem(meas, period, sigma, n_coef)
     cost, v, done = _least_squares(lanes, max_iterations, progress)

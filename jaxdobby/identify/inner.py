@@ -173,8 +173,25 @@ def gauss_newton(fn, start, max_iterations=INNER_ITERATIONS):
     return v, done
 
 
-@eqx.filter_jit
-def inner(coef, dcoef, z, mu, lower, upper, v0, scan, data: Problem):
+def inner(coef, dcoef, z, mu, lower, upper, v0, scan, data: Problem, *, directory=None):
+    """:func:`_inner` through a stored program (:func:`jaxdobby.programs.stored_call`, kept in
+    ``directory``)."""
+    from ..programs import stored_call
+
+    return stored_call("identify-inner", _inner,
+                       (coef, dcoef, z, mu, lower, upper, v0, scan, data), directory=directory)
+
+
+def full(coef, dcoef, z, lower, upper, v0, data: Problem, *, directory=None):
+    """:func:`_full` through a stored program (:func:`jaxdobby.programs.stored_call`, kept in
+    ``directory``)."""
+    from ..programs import stored_call
+
+    return stored_call("identify-full", _full, (coef, dcoef, z, lower, upper, v0, data),
+                       directory=directory)
+
+
+def _inner(coef, dcoef, z, mu, lower, upper, v0, scan, data: Problem):
     """For each lane (vmapped): the cost ½‖r‖² at v0 (true cost: δ = 0 there), then the
     damped linearised step v = (δ, φ, b) by :func:`gauss_newton` from v0 (φ, b from
     :func:`phase_scan` where ``scan``; the caller keeps a step only if the true cost falls, so
@@ -198,8 +215,7 @@ def inner(coef, dcoef, z, mu, lower, upper, v0, scan, data: Problem):
     return jax.vmap(one)(coef, dcoef, z, mu, v0)
 
 
-@eqx.filter_jit
-def full(coef, dcoef, z, lower, upper, v0, data: Problem):
+def _full(coef, dcoef, z, lower, upper, v0, data: Problem):
     """For each lane (vmapped): the weighted residuals r (2·m,) at v0 and their Jacobian in
     v = (δ, φ, b) (at δ = 0 the exact Jacobian of r in (z, φ, b))."""
     def one(coef, dcoef, z, v0):

@@ -28,7 +28,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -194,13 +193,21 @@ def harmonics(phase, n_coef: int) -> tuple[Array, Array]:
     return jnp.cos(angle), jnp.sin(angle)
 
 
-@eqx.filter_jit
 def cycle_grids(setup: Setup, names: tuple[str, ...], log: tuple[bool, ...], method: str,
-                steps: int, z) -> tuple[Array, Array, Array]:
+                steps: int, z, *, directory=None) -> tuple[Array, Array, Array]:
     """The steady cycle and its exact derivatives for a batch of z, shape (B, p) (vmapped):
     (T [s] (B,), grid (B, 2, N), d grid/dz (B, 2, N, p)); grid rows: acceleration [m/s²] and
     height [mm] on the uniform grid over [0, T) (:func:`cycle_grid`). Forward mode through the
-    steady state (p tangents)."""
+    steady state (p tangents). A stored program (:func:`jaxdobby.programs.stored_call`: traced
+    once, kept in ``directory``; compiled once per process and configuration)."""
+    from ..programs import stored_call
+
+    return stored_call("identify-cycle-grids", _cycle_grids,
+                       (setup, tuple(names), tuple(log), method, int(steps), jnp.asarray(z)),
+                       directory=directory)
+
+
+def _cycle_grids(setup, names, log, method, steps, z):
     def one(zi):
         def f(zz):
             period, acc, height = cycle_grid(setup_at(setup, names, log, zz), method, steps)
