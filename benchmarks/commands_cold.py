@@ -10,7 +10,8 @@ loading the package's shipped executables, the run, the output), in fresh proces
 The commands (``--commands`` picks some by name): ``simulate``, ``sweep speed``, ``sweep
 modes``, ``campbell``, ``beam``, ``loom --weave twill22``, ``sobol`` (the default study,
 10 240 runs), ``optimize`` (the default design study), ``identify`` (a two-parameter fit of
-the default machine's own steady cycle, as ``jaxdobby simulate --out`` writes it). With
+two periods of the default machine's own steady cycle, as ``jaxdobby simulate --out`` writes
+it). With
 ``--commands``, the other commands' rows of the previous results are kept.
 
 Writes ``results/commands_cold.json`` and ``.md``.
@@ -52,8 +53,8 @@ INPUTS = {"identify": "measured.csv"}
 
 
 def measured_trace(path: Path) -> None:
-    """A measured-like trace for ``jaxdobby identify``: the default machine's steady cycle as
-    ``jaxdobby simulate --out`` writes it (its own cache folder, so that the timed runs' stays
+    """A measured-like trace for ``jaxdobby identify``: two periods of the default machine's
+    steady cycle as ``jaxdobby simulate --out`` writes it (its own cache folder, so that the timed runs' stays
     empty), in the columns identify reads."""
     import numpy as np
 
@@ -61,8 +62,10 @@ def measured_trace(path: Path) -> None:
         subprocess.run(_command() + ["simulate", "--out", out], env=_env(cache), check=True,
                        capture_output=True)
         data = np.genfromtxt(Path(out) / "timeseries.csv", delimiter=",", names=True)
-    table = np.column_stack([data["t_s"], data["acceleration_flexible_m_s2"],
-                             data["heald_flexible_mm"]])
+    t, period = data["t_s"][:-1], data["t_s"][-1]  # the last sample repeats the first
+    cycle = np.column_stack([data["acceleration_flexible_m_s2"], data["heald_flexible_mm"]])[:-1]
+    # two cycles of the periodic steady state (identify asks for more than one)
+    table = np.column_stack([np.concatenate([t, t + period]), np.concatenate([cycle, cycle])])
     np.savetxt(path, table, delimiter=",", fmt="%.17g", comments="",
                header="time_s,heald_frame_acceleration_m_s2,heald_frame_position_mm")
 
