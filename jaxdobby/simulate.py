@@ -426,6 +426,37 @@ def stored_report_arrays(setup, options, *, directory=None, ship=None
     Two programs (:func:`report_programs`): the run, and the report of the run (the arm's
     stress and the validity checks). XLA compiles them side by side
     (:func:`jaxdobby.programs.compile_together`), and they run one after the other."""
+    compiled, args = _report_compiled(setup, options, directory, ship)
+    run_c, report_c = compiled
+    return jax.device_get(report_c(*run_c(*args)))
+
+
+def compile_reports(setups, options, *, directory=None) -> None:
+    """Get the programs of :func:`stored_report_arrays` ready for every setup of ``setups``
+    (configurations of their own: a sweep of sizes), so that XLA compiles one while the next
+    is traced: each configuration's programs are read or traced here, one after the other
+    (Python work), and compiled in a background thread (XLA's work, outside Python's lock);
+    :func:`stored_report_arrays` then waits for its own. ``jaxdobby sweep modes``: see
+    :mod:`jaxdobby.sweep`."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(2, thread_name_prefix="jaxdobby-compile")
+    try:
+        for setup in setups:
+            memo, programs_args, _ = _report_stored(setup, options, directory)
+            if memo not in _REPORT_PROGRAMS:
+                from . import programs
+
+                _REPORT_PROGRAMS[memo] = pool.submit(programs.compile_together, programs_args,
+                                                     programs.ONE_SHOT)
+    finally:
+        pool.shutdown(wait=False)
+
+
+def _report_stored(setup, options, directory, anew: bool = False):
+    """(memo key, [(exported run, args), (exported report, its args)], the run's arrays) of
+    :func:`stored_report_arrays`: the stored programs read or traced, not compiled (None where
+    the process has them compiled already, unless ``anew``)."""
     from . import programs
 
     (name_run, run_fn, args, key), (name_report, report_fn, key_report) = report_programs(
@@ -433,19 +464,31 @@ def stored_report_arrays(setup, options, *, directory=None, ship=None
     # compiled once per process and configuration: a sweep of float values runs them again
     memo = (programs.program_key(name_run, key, args), key_report, str(directory),
             str(programs.SHIPPED), programs.executables_usable())
+    if memo in _REPORT_PROGRAMS and not anew:
+        return memo, None, args
+    run = programs.stored_program(name_run, run_fn, args, static_key=key, directory=directory)
+    leaves = [jax.ShapeDtypeStruct(a.shape, a.dtype) for a in run.out_avals]
+    report = programs.stored_program(name_report, report_fn, leaves, static_key=key_report,
+                                     directory=directory)
+    return memo, [(run, args), (report, leaves)], args
+
+
+def _report_compiled(setup, options, directory, ship):
+    """(the compiled run and report of :func:`stored_report_arrays`, the run's arrays)."""
+    from concurrent.futures import Future
+
+    from . import programs
+
+    memo, programs_args, args = _report_stored(setup, options, directory,
+                                               anew=ship is not None)
     compiled = None if ship is not None else _REPORT_PROGRAMS.get(memo)
+    if isinstance(compiled, Future):
+        compiled = _REPORT_PROGRAMS[memo] = compiled.result()
     if compiled is None:
-        run = programs.stored_program(name_run, run_fn, args, static_key=key,
-                                      directory=directory)
-        leaves = [jax.ShapeDtypeStruct(a.shape, a.dtype) for a in run.out_avals]
-        report = programs.stored_program(name_report, report_fn, leaves,
-                                         static_key=key_report, directory=directory)
-        compiled = programs.compile_together([(run, args), (report, leaves)],
-                                             programs.ONE_SHOT, ship=ship)
+        compiled = programs.compile_together(programs_args, programs.ONE_SHOT, ship=ship)
         if ship is None:
             _REPORT_PROGRAMS[memo] = compiled
-    run_c, report_c = compiled
-    return jax.device_get(report_c(*run_c(*args)))
+    return compiled, args
 
 
 _REPORT_PROGRAMS: dict = {}

@@ -11,7 +11,10 @@ parameter, the others held at ``setup``. Two ways, the same equations:
   ~0.1 s per run. With an empty cache, on 2 cores (2026-12-06): ``jaxdobby sweep speed`` on
   the default machine 2.8 s (15 s when it compiled a vmapped batch), ``jaxdobby sweep modes``
   52 s (86 s compiling ``simulate`` for each size); ``tests/test_sweep.py`` holds the two ways
-  to each other;
+  to each other. A sweep of sizes traces each size's programs while XLA compiles the previous
+  ones in two background threads (:func:`jaxdobby.simulate.compile_reports`): ``jaxdobby sweep
+  modes`` 45–46 s against 64–70 s one size after another (the two alternated, 2026-12-06
+  evening, the same machine);
 * **one vmapped batch** (``batched=True``, RK4 and adaptive runs, and more than
   :data:`LOOP_MAX` values): one compilation, one solve for all values, with the step count of
   the most demanding value.
@@ -34,7 +37,7 @@ import numpy as np
 from .config import RunOptions, check_value
 from .errors import InputError
 from .parameters import PARAMETERS, Setup, apply
-from .simulate import _simulate, resolve_method, stored_report, summary
+from .simulate import _simulate, compile_reports, resolve_method, stored_report, summary
 
 LOOP_MAX = 32
 """Most values a collocation sweep runs one after another through the command line's programs
@@ -170,6 +173,8 @@ def _loop(setups, values, name, unit, method, directory) -> SweepResult:
     """The sweep one value after another through :func:`jaxdobby.simulate.stored_report` (the
     command line's programs, compiled once per configuration and process)."""
     rows, series = [], []
+    # a sweep of sizes: XLA compiles one size's programs while the next is traced
+    compile_reports(setups, RunOptions(method=method), directory=directory)
     for s in setups:
         row, cycle, _ = stored_report(s, RunOptions(method=method), directory=directory)
         rows.append(row)

@@ -37,6 +37,21 @@ def test_vmapped_sweep_equals_the_runs_one_by_one():
     assert loop.rows[1]["deviation_pp_mm"] < loop.rows[0]["deviation_pp_mm"]
 
 
+def test_a_sweep_of_sizes_compiles_them_side_by_side_and_keeps_them_apart():
+    """`jaxdobby sweep modes`: each size's programs compile in the background while the next
+    is traced (jaxdobby.simulate.compile_reports); every row must still be its own size's run.
+    Independent of the plumbing: the arm's own frequencies are eigenvalues of one finite-element
+    model, so those of k = 1 are the first of k = 2 (to 1e-9 relative: round-off of eigh), and
+    each row lists k of them; and each row is what `jaxdobby simulate --modes k` reports."""
+    result = run_sweep(Setup(), "modes", [1, 2], directory=programs_dir())
+    for k, row in zip([1, 2], result.rows):
+        assert row["n_modes"] == k and len(row["arm_frequencies_hz"]) == k
+        s = Setup(machine=Setup().machine.replace(n_modes=k))
+        assert row == stored_report(s, RunOptions(), directory=programs_dir())[0]
+    np.testing.assert_allclose(result.rows[0]["arm_frequencies_hz"][0],
+                               result.rows[1]["arm_frequencies_hz"][0], rtol=1e-9)
+
+
 def test_sweep_command_writes_table_and_figures(tmp_path, capsys):
     code = main(["sweep", "thickness", "--values", "6", "8", "--out", str(tmp_path), "--json"])
     assert code == 0
