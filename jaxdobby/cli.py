@@ -264,6 +264,10 @@ def _attach_negative_values(argv: list[str]) -> list[str]:
 SINGLE_VALUE_FLAGS = ("--speed", "--warp-force", "--stroke", "--thickness", "--modes")
 
 
+EXIT_INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT, as shells report it)."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``jaxdobby`` console script; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -277,6 +281,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except InputError as err:
         print(f"jaxdobby {ns.command}: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT
+        print(f"jaxdobby {ns.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -431,26 +431,45 @@ def stored_report_arrays(setup, options, *, directory=None, ship=None
     return jax.device_get(report_c(*run_c(*args)))
 
 
-def compile_reports(setups, options, *, directory=None) -> None:
+def compile_reports(setups, options, *, directory=None) -> list:
     """Get the programs of :func:`stored_report_arrays` ready for every setup of ``setups``
     (configurations of their own: a sweep of sizes), so that XLA compiles one while the next
     is traced: each configuration's programs are read or traced here, one after the other
     (Python work), and compiled in a background thread (XLA's work, outside Python's lock);
     :func:`stored_report_arrays` then waits for its own. ``jaxdobby sweep modes``: see
-    :mod:`jaxdobby.sweep`."""
+    :mod:`jaxdobby.sweep`. Returns the compilations started (``concurrent.futures.Future``):
+    a caller that stops early (an interrupt) cancels those not yet running with
+    :func:`cancel_compiles`, so that the process does not finish them before it exits."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from . import programs
+
     pool = ThreadPoolExecutor(2, thread_name_prefix="jaxdobby-compile")
+    started = []
     try:
         for setup in setups:
             memo, programs_args, _ = _report_stored(setup, options, directory)
             if memo not in _REPORT_PROGRAMS:
-                from . import programs
-
-                _REPORT_PROGRAMS[memo] = pool.submit(programs.compile_together, programs_args,
-                                                     programs.ONE_SHOT)
+                started.append((memo, pool.submit(programs.compile_together, programs_args,
+                                                  programs.ONE_SHOT)))
+                _REPORT_PROGRAMS[memo] = started[-1][1]
+    except BaseException:
+        cancel_compiles(started)
+        raise
     finally:
         pool.shutdown(wait=False)
+    return started
+
+
+def cancel_compiles(started) -> None:
+    """Cancel the compilations of :func:`compile_reports` that have not started, and forget
+    every one that did not finish (a later call compiles it anew)."""
+    for memo, future in started:
+        future.cancel()
+        if _REPORT_PROGRAMS.get(memo) is future and not (future.done()
+                                                          and not future.cancelled()
+                                                          and future.exception() is None):
+            del _REPORT_PROGRAMS[memo]
 
 
 def _report_stored(setup, options, directory, anew: bool = False):

@@ -37,7 +37,8 @@ import numpy as np
 from .config import RunOptions, check_value
 from .errors import InputError
 from .parameters import PARAMETERS, Setup, apply
-from .simulate import _simulate, compile_reports, resolve_method, stored_report, summary
+from .simulate import (_simulate, cancel_compiles, compile_reports, resolve_method,
+                       stored_report, summary)
 
 LOOP_MAX = 32
 """Most values a collocation sweep runs one after another through the command line's programs
@@ -174,11 +175,15 @@ def _loop(setups, values, name, unit, method, directory) -> SweepResult:
     command line's programs, compiled once per configuration and process)."""
     rows, series = [], []
     # a sweep of sizes: XLA compiles one size's programs while the next is traced
-    compile_reports(setups, RunOptions(method=method), directory=directory)
-    for s in setups:
-        row, cycle, _ = stored_report(s, RunOptions(method=method), directory=directory)
-        rows.append(row)
-        series.append(cycle)
+    started = compile_reports(setups, RunOptions(method=method), directory=directory)
+    try:
+        for s in setups:
+            row, cycle, _ = stored_report(s, RunOptions(method=method), directory=directory)
+            rows.append(row)
+            series.append(cycle)
+    except BaseException:  # an interrupt: the sizes not yet compiling are not compiled
+        cancel_compiles(started)
+        raise
     return SweepResult(name, unit, list(values), rows, series)
 
 

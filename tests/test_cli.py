@@ -187,3 +187,17 @@ def test_console_script():
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert bad.stderr.strip().splitlines() == [
         "jaxdobby simulate: error: --speed = -1 r/min is outside the valid range (>= 100 and <= 1800 r/min)"]
+
+
+def test_ctrl_c_ends_with_one_line_and_status_130(capsys, monkeypatch):
+    """An interrupt (Ctrl-C) is not a crash: one line naming the command, no traceback, and
+    the status a shell gives a process stopped by SIGINT (128 + 2)."""
+    import jaxdobby.cli as cli
+
+    def interrupted(ns):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_beam", interrupted)
+    assert main(["beam"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "jaxdobby beam: interrupted"
