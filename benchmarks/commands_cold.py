@@ -54,8 +54,8 @@ INPUTS = {"identify": "measured.csv"}
 
 def measured_trace(path: Path) -> None:
     """A measured-like trace for ``jaxdobby identify``: two periods of the default machine's
-    steady cycle as ``jaxdobby simulate --out`` writes it (its own cache folder, so that the timed runs' stays
-    empty), in the columns identify reads."""
+    steady cycle as ``jaxdobby simulate --out`` writes it (its own cache folder, so that the
+    timed runs' stays empty), in the columns identify reads."""
     import numpy as np
 
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as out:

@@ -489,8 +489,8 @@ def stored_call(name: str, fn: Callable, args: Sequence, *, static_key: str = ""
         ship: where to write the compiled executable (``python -m jaxdobby.programs``).
     """
     flat, leaves, specs, key = _flattened(name, fn, args, static_key)
-    memo = (program_key(name, key, specs), repr(sorted((compiler_options or {}).items())),
-            str(directory), str(SHIPPED), executables_usable())
+    memo = process_memo(program_key(name, key, specs),
+                        repr(sorted((compiler_options or {}).items())), directory=directory)
     compiled = None if ship is not None else _CALLS.get(memo)
     if compiled is None:
         exported = stored_program(name, flat, specs, static_key=key, directory=directory)
@@ -498,6 +498,14 @@ def stored_call(name: str, fn: Callable, args: Sequence, *, static_key: str = ""
         if ship is None:
             _CALLS[memo] = compiled
     return compiled(*leaves)
+
+
+def process_memo(*parts, directory: Path | None) -> tuple:
+    """The key under which a process keeps a compiled program (:func:`stored_call`,
+    :func:`jaxdobby.simulate.stored_report_arrays`): ``parts`` (the program's key, its
+    options), the folder it was read from, and what decides whether a shipped executable was
+    loaded instead (the shipped folder, :func:`executables_usable`)."""
+    return (*parts, str(directory), str(SHIPPED), executables_usable())
 
 
 def call_program(name: str, fn: Callable, args: Sequence, *, static_key: str = "",

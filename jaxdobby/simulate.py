@@ -466,9 +466,8 @@ def cancel_compiles(started) -> None:
     every one that did not finish (a later call compiles it anew)."""
     for memo, future in started:
         future.cancel()
-        if _REPORT_PROGRAMS.get(memo) is future and not (future.done()
-                                                          and not future.cancelled()
-                                                          and future.exception() is None):
+        finished = future.done() and not future.cancelled() and future.exception() is None
+        if not finished and _REPORT_PROGRAMS.get(memo) is future:
             del _REPORT_PROGRAMS[memo]
 
 
@@ -481,8 +480,8 @@ def _report_stored(setup, options, directory, anew: bool = False):
     (name_run, run_fn, args, key), (name_report, report_fn, key_report) = report_programs(
         setup, options)
     # compiled once per process and configuration: a sweep of float values runs them again
-    memo = (programs.program_key(name_run, key, args), key_report, str(directory),
-            str(programs.SHIPPED), programs.executables_usable())
+    memo = programs.process_memo(programs.program_key(name_run, key, args), key_report,
+                                 directory=directory)
     if memo in _REPORT_PROGRAMS and not anew:
         return memo, None, args
     run = programs.stored_program(name_run, run_fn, args, static_key=key, directory=directory)

@@ -220,8 +220,9 @@ class Evaluator:
         executables' keys are made of (:func:`jaxdobby.programs.together_keys`)."""
         names = ["values"] + (["values-many"] if starts > 1 else []) + [self.mode]
         out = []
+        scan = jnp.zeros((starts, self.space.size))
         for name in names:
-            u = jnp.zeros((starts, self.space.size)) if name == "values-many" else self.space.initial
+            u = scan if name == "values-many" else self.space.initial
             fn, options = PROGRAMS[name]
             exported, specs, file = call_program(f"optimize-{name}", fn,
                                                  self._arguments(name, u),

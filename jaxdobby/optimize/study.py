@@ -71,15 +71,17 @@ class StudyResult:
 def run_study(study: Study, progress: Callable[[str], None] | None = None, *,
               programs=None) -> StudyResult:
     """Run ``study``; ``progress`` receives one line per iteration (and a few status lines).
-    ``programs``: where the evaluator's programs (:class:`~jaxdobby.optimize.objective.Evaluator`)
-    and the validity check's (:func:`design_warnings`) are stored."""
+    ``programs``: where the evaluator's programs
+    (:class:`~jaxdobby.optimize.objective.Evaluator`) and the validity check's
+    (:func:`design_warnings`) are stored."""
     say = progress or (lambda _: None)
     space = study.space
     check_mass_budget(space, study.limits)
     linear = affine_rows(space, study.limits)[:1]  # held exactly by projection
     t0 = time.perf_counter()
     say("preparing the steady-state programs (seconds where the package ships them compiled "
-        "or this folder's cache has them traced; up to a minute on 2 cores where they compile)...")
+        "or this folder's cache has them traced; up to a minute on 2 cores where they "
+        "compile)...")
     evaluator = Evaluator(space, study.objective, steps=study.steps, mode=study.gradient,
                           directory=programs)
     t_forward = time.perf_counter() - t0
