@@ -14,11 +14,13 @@ Measures, on this machine, float64, compile time apart:
   second study of the same problem costs), and in 2 processes joined by ``jax.distributed``;
 * with ``--accuracy``: the largest relative error of each metric at the 16 corners of the
   default box against the adaptive reference (``jaxdobby.simulate(method="adaptive")``,
-  rtol 1e-8), the accuracy the throughput is measured at.
+  rtol 1e-8), the accuracy the throughput is measured at;
+* with ``--steps N``: the same at N collocation steps per cycle instead of the default 432
+  (``jaxdobby sobol --steps N``), written to ``sobol_throughput_steps<N>.json``.
 
 Writes ``benchmarks/results/sobol_throughput.json`` and ``.md``.
 
-Run:  python benchmarks/sobol_throughput.py [--quick] [--accuracy]
+Run:  python benchmarks/sobol_throughput.py [--quick] [--accuracy] [--steps N]
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def worker(args) -> dict:
     space = ParameterSpace.from_names(DOBBY.default_names, DOBBY.parameters)
     rows = space.sample(args.n, second_order=True, seed=0)[: args.rows]
     rows = rows[args.share::args.of]  # this process's share of the rows
-    model = DOBBY.build(space)
+    model = DOBBY.builder(args.steps)(space)
     t0 = time.perf_counter()
     evaluate(model, rows[: args.chunk], chunk_size=args.chunk, devices=args.devices)  # trace + compile + one chunk
     first = time.perf_counter() - t0
@@ -91,7 +93,8 @@ def _env(devices: int = 1, cache: str = "off") -> dict:
 def _worker_cmd(args, share: int, of: int, barrier: str | None, devices: int = 1) -> list[str]:
     cmd = [sys.executable, __file__, "--worker", "--devices", str(devices), "--n", str(args.n), "--rows", str(args.rows),
            "--chunk", str(args.chunk), "--repeats", str(args.repeats), "--share", str(share),
-           "--of", str(of), "--no-study"]
+           "--of", str(of), "--no-study"] + (
+               ["--steps", str(args.steps)] if args.steps else [])
     return cmd + (["--barrier", barrier] if barrier else [])
 
 
@@ -175,15 +178,16 @@ def cached_study() -> dict:
         return default_study(1, cache)
 
 
-def accuracy() -> dict:
-    """Largest relative error per metric over the 16 corners, batch vs adaptive reference."""
+def accuracy(steps: int | None = None) -> dict:
+    """Largest relative error per metric over the 16 corners, batch vs adaptive reference, at
+    ``steps`` collocation steps per cycle (None: the default)."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
     import jax.numpy as jnp
 
     from jaxdobby import simulate
-    from jaxdobby.periodic import METRICS, steady_state_metrics
+    from jaxdobby.periodic import DEFAULT_STEPS, METRICS, steady_state_metrics
     from jaxdobby.parameters import Setup, apply
 
     rpm = 3.141592653589793 / 30.0
@@ -195,7 +199,9 @@ def accuracy() -> dict:
     def setup(r):
         return apply(Setup(), dict(zip(names, r)))
 
-    batch = jax.jit(jax.vmap(lambda r: steady_state_metrics(setup(r))))(jnp.asarray(rows))
+    n = steps or DEFAULT_STEPS
+    batch = jax.jit(jax.vmap(lambda r: steady_state_metrics(setup(r), steps=n)))(
+        jnp.asarray(rows))
     worst = dict.fromkeys(METRICS, 0.0)
     for i, r in enumerate(rows):
         s = setup(jnp.asarray(r))
@@ -203,7 +209,7 @@ def accuracy() -> dict:
         for m in METRICS:
             err = abs(float(batch[m][i]) - float(ref[m])) / abs(float(ref[m]))
             worst[m] = max(worst[m], err)
-    return {"corners": len(rows), "max_relative_error": worst}
+    return {"corners": len(rows), "steps": n, "max_relative_error": worst}
 
 
 def markdown(result: dict) -> str:
@@ -229,6 +235,10 @@ def markdown(result: dict) -> str:
         lines.append(f"Accuracy at the 16 corners of the default box, largest relative error "
                      f"against the adaptive reference: {errs}"
                      + (f" (measured {when})." if when else "."))
+    if result.get("steps"):
+        lines.append("")
+        lines.append(f"At {result['steps']} collocation steps per cycle (`jaxdobby sobol --steps "
+                     f"{result['steps']}`), not the default 432.")
     lines.append("")
     lines.append(f"Measured {result['date']} on {result['machine']}, jax {result['jax']}.")
     return "\n".join(lines) + "\n"
@@ -250,6 +260,8 @@ def main(argv=None):
                     help="skip the full default study")
     ap.add_argument("--accuracy", action="store_true",
                     help="also the corners against the adaptive reference (minutes)")
+    ap.add_argument("--steps", type=int, default=None,
+                    help="collocation steps per cycle (default: the model's, 432)")
     ap.add_argument("--out", default=str(RESULTS))
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--share", type=int, default=0, help=argparse.SUPPRESS)
@@ -261,13 +273,18 @@ def main(argv=None):
         return 0
     if args.quick:
         args.rows, args.chunk, args.repeats, args.study = 16, 8, 1, False
+    if args.steps:  # the default study is the default steps' (jaxdobby sobol without --steps)
+        args.study = False
+    name = ("sobol_throughput" + (f"_steps{args.steps}" if args.steps else "")
+            + ("_quick" if args.quick else ""))
     import jax
 
-    result = {"benchmark": "sobol_throughput", "quick": args.quick,
+    result = {"benchmark": name.removesuffix("_quick"), "quick": args.quick,
               "date": datetime.datetime.now().isoformat(timespec="seconds"),
               "machine": f"{platform.processor() or platform.machine()}, "
                          f"{os.cpu_count()} cores, {platform.system()}",
               "python": platform.python_version(), "jax": jax.__version__,
+              **({"steps": args.steps} if args.steps else {}),
               "runs": [in_processes(p, args) for p in args.processes]
               + [in_processes(1, args, d) for d in args.devices_list if d > 1]}
     if args.study:
@@ -275,15 +292,14 @@ def main(argv=None):
                              cached_study()] + (
             [default_study(max(args.processes))] if max(args.processes) > 1 else [])
     if args.accuracy:
-        result["accuracy"] = accuracy()
+        result["accuracy"] = accuracy(args.steps)
     else:  # keep the corners of the last run that measured them, with their date
         with contextlib.suppress(OSError, ValueError, KeyError):
-            last = json.loads((Path(args.out) / "sobol_throughput.json").read_text())
+            last = json.loads((Path(args.out) / f"{name}.json").read_text())
             result["accuracy"] = {"date": last["date"], **last["accuracy"]}  # its own date wins
     result["markdown"] = markdown(result)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    name = "sobol_throughput_quick" if args.quick else "sobol_throughput"
     (out / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
     (out / f"{name}.md").write_text(result["markdown"])
     print(result["markdown"])

@@ -115,6 +115,49 @@ def test_unreachable_stroke_bounds_are_refused_before_running(tmp_path, capsys):
     assert "parameter 'stroke': bounds must lie in the reachable range" in err
 
 
+@pytest.mark.parametrize("argv, expected", [
+    (["--steps", "71"], "--steps must be an integer 72…4320 (collocation steps per cycle; "
+                        "default 432); got 71"),
+    (["--steps", "4321"], "--steps must be an integer 72…4320"),
+    (["--model", "ishigami", "--steps", "216"], "--steps: model 'ishigami' has no time steps"),
+])
+def test_bad_steps_are_refused_before_anything_is_written(tmp_path, capsys, argv, expected):
+    assert main(["sobol", *argv, "--n", "8", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert expected in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_steps_other_than_the_default_key_their_own_stored_program():
+    # the default's key is what the shipped program was stored under (tests/test_programs.py)
+    from jaxdobby.sensitivity.command import stored_model
+    from jaxdobby.sensitivity.space import ParameterSpace
+
+    space = ParameterSpace.from_names(DOBBY.default_names, DOBBY.parameters)
+    default = stored_model(DOBBY, space).static_key
+    assert stored_model(DOBBY, space, None).static_key == default
+    assert stored_model(DOBBY, space, 216).static_key != default
+    assert DOBBY.builder(432) is DOBBY.build and DOBBY.builder(None) is DOBBY.build
+
+
+@pytest.mark.slow  # ~40 s: compiles the batch at 216 steps
+def test_fewer_steps_give_the_default_study_to_the_stated_accuracy(small_run, tmp_path):
+    # jaxdobby sobol --steps 216: every metric of these 192 rows within 1e-3 relative of the
+    # default's (432 steps, itself within 3e-5 of the adaptive reference). The --steps help
+    # states 1.3e-3 over the default study's 10 240 rows (the velocity deviation's
+    # amplitude; ≤ 1.3e-4 on the others) and 8e-4 at the corners of the box against the
+    # adaptive reference (benchmarks/sobol_throughput.py --steps 216 --accuracy)
+    run = run_sobol(SobolConfig(n=32, seed=3, out=tmp_path, chunk_size=64, num_resamples=50,
+                                steps=216))
+    assert json.loads((tmp_path / "manifest.json").read_text())["steps"] == 216
+    assert json.loads((tmp_path / "indices.json").read_text())["run"]["steps"] == 216
+    fast, ref = run.evaluation.outputs, small_run.evaluation.outputs
+    assert np.all(fast["ok"])
+    for name in ("deviation_pp_mm", "deviation_max_mm", "deviation_min_mm",
+                 "velocity_deviation_amp_m_s", "acceleration_amp_m_s2"):
+        np.testing.assert_allclose(fast[name], ref[name], rtol=1e-3, err_msg=name)
+
+
 @pytest.mark.slow  # ~100 s: a fresh process compiles the dobby batch; the two-process
 # equality itself is in the default suite (test_sensitivity_parallel, on the Ishigami model)
 def test_dobby_study_joins_jax_distributed_before_building_the_model(tmp_path):

@@ -123,5 +123,6 @@ def check_strokes(space: ParameterSpace, base: Setup) -> None:
                          f"[{b_lo}, {b_hi}]")
 
 
-DOBBY = ModelSpec("dobby", DOBBY_PARAMETERS, DEFAULT_PROBLEM, dobby_model())
+DOBBY = ModelSpec("dobby", DOBBY_PARAMETERS, DEFAULT_PROBLEM, dobby_model(),
+                  lambda steps: dobby_model(steps=steps), DEFAULT_STEPS)
 """The dobby (built-in default machine) as a Sobol model."""

@@ -41,12 +41,44 @@ class ModelSpec:
         default_names: the parameters of the default problem, in order.
         build: ``build(space) -> model``; ``model(x)`` maps one sample row (D,) [users' units]
             to a dict of scalar float64 metrics, plus an optional ``"ok"`` status.
+        build_with_steps: for a model solved on a fixed number of time steps per cycle,
+            ``build_with_steps(n)`` is its ``build`` with n steps (``jaxdobby sobol --steps``:
+            accuracy traded for speed); None: the model has no such setting.
+        default_steps: the steps per cycle of ``build`` (with ``build_with_steps``).
     """
 
     name: str
     parameters: Mapping[str, ParameterSpec]
     default_names: tuple[str, ...]
     build: Callable[[ParameterSpace], Model]
+    build_with_steps: Callable[[int], Callable[[ParameterSpace], Model]] | None = None
+    default_steps: int | None = None
+
+    def builder(self, steps: int | None = None) -> Callable[[ParameterSpace], Model]:
+        """``build`` for ``steps`` time steps per cycle (None or :attr:`default_steps`: the
+        default ``build`` itself); see :func:`check_steps` for the valid values."""
+        steps = check_steps(self, steps)
+        return self.build if steps is None else self.build_with_steps(steps)
+
+
+MIN_STEPS, MAX_STEPS = 72, 4320
+"""Valid steps per cycle of :meth:`ModelSpec.builder` (72: one per 5° of the cycle; 4320: ten
+times the dobby's default: a chunk's rigid-motion tables and Newton matrices, kept for every
+step of every row, grow with the steps)."""
+
+
+def check_steps(model: ModelSpec, steps) -> int | None:
+    """``steps`` checked for ``model`` (raise ``ValueError`` naming ``--steps`` and the valid
+    range); None when it is None or the model's default (the default build)."""
+    if steps is None:
+        return None
+    if model.build_with_steps is None:
+        raise ValueError(f"--steps: model {model.name!r} has no time steps to set")
+    if isinstance(steps, bool) or not isinstance(steps, int) or not (
+            MIN_STEPS <= steps <= MAX_STEPS):
+        raise ValueError(f"--steps must be an integer {MIN_STEPS}…{MAX_STEPS} (collocation steps "
+                         f"per cycle; default {model.default_steps}); got {steps!r}")
+    return None if steps == model.default_steps else steps
 
 
 def ishigami(x: Array, a: float = 7.0, b: float = 0.1) -> Array:

@@ -59,5 +59,6 @@ def dobby_stress_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
     return build
 
 
-DOBBY_STRESS = ModelSpec("dobby-stress", DOBBY_PARAMETERS, DEFAULT_PROBLEM, dobby_stress_model())
+DOBBY_STRESS = ModelSpec("dobby-stress", DOBBY_PARAMETERS, DEFAULT_PROBLEM, dobby_stress_model(),
+                         lambda steps: dobby_stress_model(steps=steps), DEFAULT_STEPS)
 """The dobby with the arm's stress metrics as a Sobol model."""
