@@ -19,11 +19,13 @@ Programs of the default configuration ship in the package (``jaxdobby/data/progr
 compiled side by side: :func:`compile_together`), the per-device program of
 the default ``jaxdobby sobol`` study on a 2-core CPU (:mod:`jaxdobby.sensitivity.batch`) and a
 plain ``jaxdobby optimize``'s three (its values, the batched scan of its starting designs and
-the reverse-mode gradient: :class:`jaxdobby.optimize.objective.Evaluator`), so that even the
-first run with an empty cache skips tracing when the installed JAX is the one they were made
-with; ``tests/test_programs.py`` checks that they are current. Commands whose programs depend
-on what the user asks for (``jaxdobby loom``'s weave, another design study) keep theirs in the
-cache folder through :func:`stored_call`: traced once, compiled once per process.
+the reverse-mode gradient: :class:`jaxdobby.optimize.objective.Evaluator`) and
+``jaxdobby loom``'s frame batch of a weave of 4 picks on 8 frames (``--weave twill22``,
+``twill31``, ``basket22``: :func:`jaxdobby.weave.loom.ship_programs`), so that even the first
+run with an empty cache skips tracing when the installed JAX is the one they were made with;
+``tests/test_programs.py`` checks that they are current. Programs that depend on what else the
+user asks for (another weave's size, another design study) are kept in the cache folder
+through :func:`stored_call`: traced once, compiled once per process.
 
 **Shipped executables.** With the tracing skipped, the first run still waits for XLA to
 compile (on 2 cores, ~5 s for ``jaxdobby simulate``'s two programs, ~10 s for the study's).
@@ -576,6 +578,9 @@ def main() -> None:
     from .optimize.command import ship_programs
 
     ship_programs(SHIPPED)  # jaxdobby optimize's: values, the scan of starts, the gradient
+    from .weave.loom import ship_programs as ship_loom
+
+    ship_loom(SHIPPED)  # jaxdobby loom --weave twill22 (and every weave of 4 picks on 8 frames)
     current = {path.name.split(".")[0] for path in SHIPPED.glob("*.xlaexe")}
     for name, data in before.items():
         stem = name.split(".")[0]

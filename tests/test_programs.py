@@ -46,7 +46,37 @@ def test_shipped_program_of_the_default_configuration_is_current(default_setup):
         assert (programs.SHIPPED / file).exists(), (
             f"the shipped program {file} is stale: run `python -m jaxdobby.programs` and "
             "commit jaxdobby/data/programs")
-    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 6
+    # jaxdobby loom's batch of a weave of 4 picks on 8 frames (twill22, twill31, basket22)
+    file = loom_program()[2]
+    assert (programs.SHIPPED / file).exists(), (
+        f"the shipped program {file} is stale: run `python -m jaxdobby.programs` and commit "
+        "jaxdobby/data/programs")
+    assert len(list(programs.SHIPPED.glob("*.jaxexport"))) == 7
+
+
+def loom_program(argv=("loom", "--weave", "twill22")):
+    """(exported, specs, file name) of the first batch of the ``jaxdobby loom`` command line
+    ``argv`` (parsed as the command parses it)."""
+    from jaxdobby.cli import build_parser
+    from jaxdobby.command_line import setup_from_args
+    from jaxdobby.weave.command import _plan, _strokes_mm
+    from jaxdobby.weave.loom import frames_program
+
+    ns = build_parser().parse_args(list(argv))
+    setup, _ = setup_from_args(ns)
+    plan, _ = _plan(ns)
+    return frames_program(setup.machine, setup.operating, plan,
+                          _strokes_mm(ns, plan.shape[1]) * 1e-3)
+
+
+@pytest.mark.parametrize("argv", [
+    ("loom", "--weave", "twill31", "--speed", "1200", "--front-stroke", "100"),
+    ("loom", "--weave", "basket22", "--frames", "8", "--strokes", *["90"] * 8),
+])
+def test_weaves_of_four_picks_on_eight_frames_share_the_shipped_loom_program(argv):
+    # the program depends on the picks and the moving frames, not on the plan, the speed or
+    # the strokes (arrays: the program's inputs)
+    assert loom_program(argv)[2] == loom_program()[2]
 
 
 @functools.cache
@@ -82,6 +112,8 @@ def test_shipped_executables_of_the_default_configuration_are_current(default_se
     keys.append(chunk_key(sobol, exported, share, two_cpus))
     for program, specs, options, _ in optimize_programs():
         keys += programs.together_keys([(program, specs)], options)
+    program, specs, _ = loom_program()
+    keys += programs.together_keys([(program, specs)], programs.ONE_SHOT)
     for key in keys:
         assert key is not None and programs.executable_variants(key), (
             f"the shipped executable {key} is stale: run `python -m jaxdobby.programs` and "
@@ -392,3 +424,24 @@ def test_optimize_values_through_the_shipped_programs_equal_a_traced_solve():
         np.testing.assert_allclose(values[name], np.asarray(want[name]), rtol=1e-10,
                                    err_msg=name)
     assert np.all(values["converged"] == 1.0)
+
+
+@pytest.mark.slow  # ~30 s: simulates a frame alone and compiles the batch anew
+def test_loom_batch_through_the_shipped_program_equals_each_frame_alone(monkeypatch):
+    """`jaxdobby loom --weave twill22` runs the package's shipped program; each frame's
+    metrics equal those of simulate() on that frame alone (its plan and stroke; 1e-9
+    relative: the same equations, vmapped or not), and a batch compiled here instead of loaded
+    gives them to round-off."""
+    from jaxdobby.weave.loom import frame_run, run_frames, shipped_weave_args
+
+    machine, operating, plan, strokes = shipped_weave_args()
+    rows = run_frames(machine, operating, plan, strokes)
+    for i in (0, 7):
+        alone = frame_run(machine, operating, plan[:, i], strokes[i]).metrics
+        for name in ("deviation_pp", "velocity_deviation_amp", "acceleration_amp"):
+            assert float(rows[i][name]) == pytest.approx(float(alone[name]), rel=1e-9), name
+    monkeypatch.setattr(programs, "executables_usable", lambda: False)
+    compiled = run_frames(machine, operating, plan, strokes)
+    for a, b in zip(rows, compiled):
+        for name in ("deviation_pp", "velocity_deviation_amp", "acceleration_amp"):
+            assert float(a[name]) == pytest.approx(float(b[name]), rel=1e-10), name

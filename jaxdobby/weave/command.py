@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import InputError
 
-DEFAULTS = dict(front_stroke=80.0, frame_pitch=12.0, fell_distance=250.0, frames=8)
+from .defaults import DEFAULTS
 FRAMES_PER_PICK = 24
 """Images per pick of ``--animate`` (at most :data:`MAX_IMAGES` over the repeat)."""
 MAX_IMAGES = 360

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine, OperatingPoint
-from ..programs import ONE_SHOT, stored_call
+from ..programs import ONE_SHOT, call_program, stored_call
 from ..simulate import simulate
 from ..stroke import arc_length_for_stroke
 from ..validity import validity_arrays, warnings_of
@@ -79,32 +79,56 @@ def _batch(machine, operating, plans, positions):
     return jax.vmap(one)(plans, positions)
 
 
+def _chunks(machine: Machine, operating: OperatingPoint, plan: np.ndarray, positions):
+    """(moving frames' indices, and per chunk of :data:`CHUNK` of them: their indices and
+    the batch's arguments, padded to a fixed size — one program — by repeating the chunk's
+    last frame)."""
+    frames = plan.shape[1]
+    moving = [i for i in range(frames) if np.any(moves(plan[:, i]))]
+    chunks = []
+    for start in range(0, len(moving), CHUNK):
+        idx = moving[start:start + CHUNK]
+        pad = idx + [idx[-1]] * (min(CHUNK, len(moving)) - len(idx))
+        chunks.append((idx, (machine, operating, jnp.asarray(plan[:, pad].T),
+                             jnp.asarray(positions[pad]))))
+    return moving, chunks
+
+
+def frames_program(machine: Machine, operating: OperatingPoint, plan: np.ndarray, strokes_m,
+                   directory=None) -> tuple:
+    """(exported program, argument specs, file name) of the first chunk of
+    :func:`run_frames`' batch (:func:`jaxdobby.programs.call_program`), without compiling."""
+    plan = np.asarray(plan, dtype=float)
+    _, chunks = _chunks(machine, operating, plan, joint_positions(machine, strokes_m))
+    return call_program("loom-frames", _batch, chunks[0][1], directory=directory)
+
+
 def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, strokes_m,
-               progress=None, *, directory=None) -> list[dict]:
+               progress=None, *, directory=None, ship=None) -> list[dict]:
     """Per frame (SI): the metrics of :func:`simulate` over the repeat, the per-pick ones, the
     deviation series; ``plan`` (picks, frames) of 0/1, ``strokes_m`` (frames,) [m].
 
     ``progress(done, total)`` is called after each chunk of :data:`CHUNK` frames. The batch
     of a chunk is a stored program (:func:`jaxdobby.programs.stored_call`, kept in
     ``directory``: a later run of a weave of as many picks and moving frames skips tracing
-    it), compiled once per process."""
+    it), compiled once per process — or loaded compiled, for the weaves whose program ships
+    with the package (:func:`ship_programs`). ``ship``: where to write the compiled
+    executable (``python -m jaxdobby.programs``)."""
     plan = np.asarray(plan, dtype=float)
     frames = plan.shape[1]
     positions = joint_positions(machine, strokes_m)
-    moving = [i for i in range(frames) if np.any(moves(plan[:, i]))]
+    moving, chunks = _chunks(machine, operating, plan, positions)
     rows: list[dict] = [dict() for _ in range(frames)]
-    for start in range(0, len(moving), CHUNK):
-        idx = moving[start:start + CHUNK]
-        # pad the chunk to a fixed size (one compiled program) by repeating its last frame
-        pad = idx + [idx[-1]] * (min(CHUNK, len(moving)) - len(idx))
-        out = stored_call("loom-frames", _batch, (machine, operating, jnp.asarray(plan[:, pad].T),
-                                                  jnp.asarray(positions[pad])),
-                          directory=directory, compiler_options=ONE_SHOT)
+    done = 0
+    for idx, args in chunks:
+        out = stored_call("loom-frames", _batch, args, directory=directory,
+                          compiler_options=ONE_SHOT, ship=ship)
         out = jax.tree.map(np.asarray, out)
         for j, i in enumerate(idx):
             rows[i] = {k: v[j] for k, v in out.items()}
+        done += len(idx)
         if progress is not None:
-            progress(min(start + CHUNK, len(moving)), len(moving))
+            progress(done, len(moving))
     for i in range(frames):
         if i not in moving:  # static: the concrete plan takes simulate's equilibrium path
             run = _simulate_frame(machine, operating, plan[:, i], float(positions[i]))
@@ -115,6 +139,34 @@ def run_frames(machine: Machine, operating: OperatingPoint, plan: np.ndarray, st
     for row in rows:
         row["warnings"] = [] if row["static"] else frame_warnings(row, speed)
     return rows
+
+
+SHIPPED_WEAVE = ("twill22", 8)
+"""The named weave and frame count whose batch program ships compiled (:func:`ship_programs`):
+a repeat of 4 picks on 8 moving frames, which is also twill31's and basket22's on 8 frames
+(the program depends on the number of picks and moving frames, not on the plan, the speed or
+the strokes)."""
+
+
+def shipped_weave_args():
+    """(machine, operating, plan, strokes [m]) of ``jaxdobby loom --weave twill22`` with the
+    built-in machine and the default clean-shed strokes (:data:`SHIPPED_WEAVE`)."""
+    from ..parameters import Setup
+    from .defaults import DEFAULTS
+    from .named import named_plan
+
+    setup = Setup()
+    weave, frames = SHIPPED_WEAVE
+    strokes = clean_shed_strokes(frames, DEFAULTS["front_stroke"], DEFAULTS["frame_pitch"],
+                                 DEFAULTS["fell_distance"])
+    return setup.machine, setup.operating, named_plan(weave, frames), strokes * 1e-3
+
+
+def ship_programs(directory) -> None:
+    """Compile the batch of :data:`SHIPPED_WEAVE` into ``directory`` (the traced program and
+    its executable; ``python -m jaxdobby.programs``), running it once."""
+    machine, operating, plan, strokes = shipped_weave_args()
+    run_frames(machine, operating, plan, strokes, directory=directory, ship=directory)
 
 
 def frame_warnings(row: dict, speed: float, tolerance: float = 1e-6) -> list[dict]:
