@@ -4,12 +4,13 @@ Times, jitted over ``jax.vmap`` of one chunk of rows of the default Sobol design
 device, compile time apart, best of ``--repeats``), per sample, each part including the ones
 before it, as :func:`jaxdobby.periodic.steady_state_metrics` runs them:
 
-* ``prepare``: the model of each sample (finite elements, modal reduction, tables), one sample
-  at a time (:func:`jaxdobby.periodic.steady.prepare` under ``sequential_vmap``);
-* ``+ linearise``: the frozen Newton matrices, monodromy matrix and linear periodic response
-  of every lane (:func:`jaxdobby.periodic.linear.linearise_lanes`, as the batch runs it);
-* ``+ one cycle``: one cycle of every lane with the extremes, reading the lanes' tables where
-  they are (as the batch's full cycles do);
+* ``model terms``: the model of each sample (finite elements, modal reduction, Kane's terms),
+  one sample at a time (:func:`jaxdobby.periodic.steady.model_terms`);
+* ``+ tables``: the rigid motion's tables of every lane, lanes last
+  (:func:`~jaxdobby.periodic.steady.batch_tables`);
+* ``+ linearise``: the frozen Newton matrices, monodromy matrix, linear periodic response and
+  chord matrix of every lane (:func:`~jaxdobby.periodic.steady.batch_linearise`);
+* ``+ one cycle``: one cycle of every lane with the extremes (as the batch's full cycles);
 * ``steady_state_metrics``: everything, for each number of lanes per round of the chord
   iteration in ``--widths`` (:data:`jaxdobby.periodic.steady.ROUND_WIDTH`).
 
@@ -55,13 +56,9 @@ def main(argv=None) -> int:
         args.chunk, args.repeats, args.widths = 8, 1, [2]
 
     jax = configure_jax()
-    import equinox as eqx
     import jax.numpy as jnp
-    from jax.custom_batching import sequential_vmap
 
     from jaxdobby.periodic import steady
-    from jaxdobby.periodic.linear import linearise_lanes
-    from jaxdobby.periodic.stepper import cycle_pass
     from jaxdobby.parameters import Setup
     from jaxdobby.sensitivity import DOBBY, ParameterSpace
     from jaxdobby.sensitivity.batch import compile_for
@@ -75,33 +72,25 @@ def main(argv=None) -> int:
     def setup_of(x):
         return setup_of_row(start, space.names, space.si_scales, x)[0]
 
-    def prepared(x):
-        dynamic, static = eqx.partition(setup_of(x), eqx.is_array)
-        return sequential_vmap(lambda d: steady.prepare(eqx.combine(d, static), **kw))(dynamic)
+    # the stages of steady_state_metrics's batch rule (steady._solve), each program including
+    # the ones before it
+    def batch_terms(xs):
+        terms, _ = jax.vmap(lambda x: steady.model_terms(setup_of(x)))(xs)
+        return steady.batch_terms(terms, jax.tree.map(lambda _: True, terms), xs.shape[0])
 
-    def batch_prepare(xs):
-        return jax.vmap(prepared)(xs)
+    def batch_tables(xs):
+        terms = batch_terms(xs)
+        return terms, steady.batch_tables(terms, steady.rigid_motion(start, **kw))
 
     def batch_linearise(xs):
-        # as steady._solve's batch rule: the lanes' tables lane-major, linearised lanes last
-        cycle = batch_prepare(xs)
-        lin = linearise_lanes(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
-        return cycle, lin
+        terms, tables = batch_tables(xs)
+        return tables, steady.batch_linearise(terms, tables)
 
     def batch_cycle(xs):
-        cycle, lin = batch_linearise(xs)
-        tables = cycle.tables
-        rest = eqx.tree_at(lambda c: c.tables, cycle, None)
-        n_steps = tables.height.shape[1]
-
-        def one(c, t, s, x):
-            run = cycle_pass(c.arm, c.downstream, lambda n: jax.tree.map(lambda a: a[n], t),
-                             c.period, x, solvers=s, outputs=True, steps=n_steps)
-            return run.end, run.maxima
-
-        # the start state here: the linear response d itself (the solve uses (I − Φ)⁻¹d; the
-        # cost of a cycle does not depend on where it starts)
-        return jax.vmap(one, in_axes=(0, 0, 1, 0))(rest, tables, lin.solvers, lin.rest_response)
+        tables, (rest, lin, chord_matrix, x) = batch_linearise(xs)
+        # the cost of a cycle does not depend on where it starts
+        return steady._chord_pass(rest, lin.solvers, chord_matrix, steady._start(x),
+                                  tables=tables)
 
     def batch_metrics(xs):
         return jax.vmap(lambda x: steady.steady_state_metrics(setup_of(x), **kw))(xs)
@@ -114,8 +103,8 @@ def main(argv=None) -> int:
         return t["min_s"] / args.chunk * 1e3, t["value"]
 
     parts = {}
-    for name, fn in [("prepare", batch_prepare), ("+ linearise", batch_linearise),
-                     ("+ one cycle", batch_cycle)]:
+    for name, fn in [("model terms", batch_terms), ("+ tables", batch_tables),
+                     ("+ linearise", batch_linearise), ("+ one cycle", batch_cycle)]:
         parts[name], _ = per_sample(fn)
         print(f"{name}: {parts[name]:.3f} ms per sample", flush=True)
     full, cycles = {}, None

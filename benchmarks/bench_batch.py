@@ -22,7 +22,7 @@ Two cores for jaxdobby: by default two host devices in one process
 ``shard_map``, the Sobol pipeline's way); ``--two processes`` runs two concurrent one-device
 processes instead, each with half of every batch. (Two host devices hung on this machine until
 the batch path built each sample's model sequentially: two batched LAPACK calls deadlocked
-jaxlib's 2-thread pool; see ``jaxdobby.periodic.steady.prepare``.)
+jaxlib's 2-thread pool; see ``jaxdobby.periodic.steady.model_terms``.)
 
 Accuracy, on the scipy subset: the batch metrics and the scipy metrics against a tight reference
 (DOP853, rtol 1e-10, jitted right-hand side) on the same samples.

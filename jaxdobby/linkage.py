@@ -37,15 +37,16 @@ def _cross(u, v):
     return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
 
 
-def intersection_margin(centre_a, radius_a, centre_b, radius_b) -> Array:
+def intersection_margin(centre_a, radius_a, centre_b, radius_b, *, axis: int = -1) -> Array:
     """Squared half-chord h² [m²] of two circles; ≥ 0 iff they meet.
 
     With d = |b − a| and x = (d² + r_a² − r_b²)/(2d) the distance from a to the chord's foot,
     h² = r_a² − x² (Norton 2020, §4.5). Its sign is the reachability test; its size says how far
-    from the tangent (dead-centre) configuration the loop is.
+    from the tangent (dead-centre) configuration the loop is. ``axis``: the centres' coordinate
+    axis, as :func:`circle_intersection`'s.
     """
     a, b = jnp.asarray(centre_a), jnp.asarray(centre_b)
-    d = jnp.linalg.norm(b - a, axis=-1)
+    d = jnp.linalg.norm(b - a, axis=axis)
     x = (d**2 + radius_a**2 - radius_b**2) / (2.0 * d)
     return radius_a**2 - x**2
 
@@ -55,7 +56,8 @@ def circles_intersect(centre_a, radius_a, centre_b, radius_b, *, tol=1e-12) -> A
     return intersection_margin(centre_a, radius_a, centre_b, radius_b) >= -tol
 
 
-def circle_intersection(centre_a, radius_a, centre_b, radius_b, branch) -> Array:
+def circle_intersection(centre_a, radius_a, centre_b, radius_b, branch, *, axis: int = -1
+                        ) -> Array:
     """Intersection point [m] of circle (centre_a, radius_a) and circle (centre_b, radius_b).
 
     p = a + x·û + branch·h·n̂, with û = (b − a)/d, n̂ = û rotated +90°, x and h as in
@@ -65,21 +67,24 @@ def circle_intersection(centre_a, radius_a, centre_b, radius_b, branch) -> Array
         centre_a, centre_b: centres [m], shape ``(..., 2)``.
         radius_a, radius_b: radii [m], broadcastable to ``(...)``.
         branch: +1 for the point left of the directed line a → b, −1 for the right one.
+        axis: the centres' coordinate axis (the last by default; 0 for (2, lanes...) arrays
+            with the batch's lanes last, as :mod:`jaxdobby.periodic.steady` runs a batch).
 
     Returns:
-        The point, shape ``(..., 2)``. For circles that do not meet, h is clamped to 0 (the point
-        on the line of centres); test with :func:`circles_intersect`.
+        The point, shape ``(..., 2)`` (its coordinates on ``axis``). For circles that do not
+        meet, h is clamped to 0 (the point on the line of centres); test with
+        :func:`circles_intersect`.
     """
     a, b = jnp.asarray(centre_a), jnp.asarray(centre_b)
     ab = b - a
-    d = jnp.linalg.norm(ab, axis=-1)
-    u = ab / d[..., None]
-    n = jnp.stack([-u[..., 1], u[..., 0]], axis=-1)
+    d = jnp.linalg.norm(ab, axis=axis)
+    u = ab / jnp.expand_dims(d, axis)
+    n = jnp.stack([-jnp.take(u, 1, axis=axis), jnp.take(u, 0, axis=axis)], axis=axis)
     x = (d**2 + radius_a**2 - radius_b**2) / (2.0 * d)
     h2 = radius_a**2 - x**2
     positive = h2 > _TINY
     h = jnp.where(positive, jnp.sqrt(jnp.where(positive, h2, 1.0)), 0.0)
-    return a + x[..., None] * u + (branch * h)[..., None] * n
+    return a + jnp.expand_dims(x, axis) * u + jnp.expand_dims(branch * h, axis) * n
 
 
 def rocker_angle(coupler_end, coupler_length, pivot, rocker_length, branch) -> Array:

@@ -42,12 +42,13 @@ class ShootingResult(eqx.Module):
 
 def relative_residual(x: Array, fx: Array) -> Array:
     """max(‖Δq‖/‖q‖, ‖Δq̇‖/‖q̇‖) of F(x) − x, blockwise infinity norms (the two blocks differ in
-    scale by the frequencies)."""
+    scale by the frequencies); x (2k, lanes...) gives one residual per lane."""
     k = x.shape[0] // 2
     r = fx - x
 
     def block(sl):
-        return jnp.max(jnp.abs(r[sl])) / (jnp.max(jnp.abs(fx[sl])) + jnp.finfo(x.dtype).tiny)
+        return (jnp.max(jnp.abs(r[sl]), axis=0)
+                / (jnp.max(jnp.abs(fx[sl]), axis=0) + jnp.finfo(x.dtype).tiny))
 
     return jnp.maximum(block(slice(0, k)), block(slice(k, None)))
 

@@ -189,7 +189,7 @@ def _resonances(arrays: dict) -> list[dict]:
 def phase_frequencies(model) -> Array:
     """The coupled natural frequencies [Hz] at :data:`PHASES` phases of the cycle of a
     :class:`~jaxdobby.dobby.DobbyModel`, shape (PHASES, k), one phase at a time
-    (``lax.map``: no batched LAPACK call, see :func:`jaxdobby.periodic.steady.prepare`)."""
+    (``lax.map``: no batched LAPACK call, see :func:`jaxdobby.periodic.steady.model_terms`)."""
     phases = model.period * jnp.arange(PHASES) / PHASES
     return jax.lax.map(lambda t: coupled_frequencies(model, t), phases)
 

@@ -257,6 +257,39 @@ def test_vmap_equals_single_samples_and_failures_are_flagged(monkeypatch):
                                    err_msg=name)
 
 
+def test_a_sampled_linkage_gives_each_lane_its_own_rigid_motion(monkeypatch):
+    """A batch shares the rigid motion's tables between its lanes unless the linkage is sampled
+    (jaxdobby.periodic.steady.batch_tables); sampling the eccentricity and the dwell with the
+    speed, each lane must get what it gets alone (the per-sample while loop under lax.map),
+    to 1e-10 as above, on the coarse grid of 144 steps (dwell boundaries then fall inside
+    steps: a rougher cycle, the same for both)."""
+    from jaxdobby.periodic import steady
+
+    seen = []
+    batch_tables = steady.batch_tables
+
+    def spy(terms, rigid, batched=False):
+        seen.append(any(jax.tree.leaves(batched)))
+        return batch_tables(terms, rigid, batched)
+
+    monkeypatch.setattr(steady, "batch_tables", spy)
+    rows = jnp.asarray([[800 * RPM, 0.030, math.radians(100.0)],
+                        [1000 * RPM, 0.029, math.radians(110.0)],
+                        [600 * RPM, 0.031, math.radians(90.0)]])
+
+    def one(r):
+        return steady_state_metrics(
+            apply(Setup(), dict(zip(("speed", "eccentricity", "dwell"), r))), steps=144)
+
+    batched = jax.jit(jax.vmap(one))(rows)
+    alone = jax.jit(lambda rs: jax.lax.map(one, rs))(rows)
+    assert seen == [True]  # the lane-by-lane tables were built (traced once)
+    assert np.asarray(batched["ok"]).all() and np.asarray(alone["ok"]).all()
+    assert np.asarray(batched["cycles"]).tolist() == np.asarray(alone["cycles"]).tolist()
+    for name in METRICS:
+        np.testing.assert_allclose(batched[name], alone[name], rtol=1e-10, err_msg=name)
+
+
 @pytest.mark.slow
 def test_corners_of_the_default_box_match_the_adaptive_reference():
     """All 16 corners of speed 400–1200 r/min × warp 345–1035 N × stroke 80–140 mm × t 6–8 mm:

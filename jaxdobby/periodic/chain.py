@@ -142,7 +142,7 @@ def chain_terms(ds: Downstream, frame: Frame, u: Array, u_rate: Array) -> ChainT
     pd0, pd1 = rot(-om * r1 + ud0, om * r0 + ud1)
     pdd0, pdd1 = rot(-2.0 * om * ud1 - al * r1 - om**2 * r0, 2.0 * om * ud0 + al * r0 - om**2 * r1)
     d0 = ds.blade_pivot
-    pin = circle_intersection(d0, ds.input_arm, p, ds.link_length, ds.branch)
+    pin = circle_intersection(d0, ds.input_arm, p, ds.link_length, ds.branch, axis=0)
     b0, b1 = pin[0] - d0[0], pin[1] - d0[1]  # r
     l0, l1 = pin[0] - p[0], pin[1] - p[1]  # ℓ
     den = l1 * b0 - l0 * b1  # ℓ·S r
@@ -172,8 +172,9 @@ def chain_reachable(ds: Downstream, frame: Frame, u: Array) -> Array:
     c, s = frame.cos, frame.sin
     r0, r1 = ds.joint[0] + u[0], ds.joint[1] + u[1]
     p = jnp.stack([c * r0 - s * r1, s * r0 + c * r1])
-    pin = circle_intersection(ds.blade_pivot, ds.input_arm, p, ds.link_length, ds.branch)
+    pin = circle_intersection(ds.blade_pivot, ds.input_arm, p, ds.link_length, ds.branch,
+                              axis=0)
     b0, b1 = pin[0] - ds.blade_pivot[0], pin[1] - ds.blade_pivot[1]
     dx = ds.guide_x - (ds.blade_pivot[0] + ds.output[0] * b0 - ds.output[1] * b1)
-    blade = intersection_margin(ds.blade_pivot, ds.input_arm, p, ds.link_length) > 0.0
+    blade = intersection_margin(ds.blade_pivot, ds.input_arm, p, ds.link_length, axis=0) > 0.0
     return blade & (ds.tumbler**2 - dx**2 > 0.0)

@@ -33,7 +33,7 @@ from ..dobby import LINK, RING, DobbyModel, crank_angle
 from ..kinematics import arm_angle_from_crank, ring_link_direction_from_crank
 from ..rigid_motion import time_derivatives
 from .chain import Downstream, Frame, chain_terms
-from .collocation import NODES
+from .collocation import NODES, stored
 
 REFERENCE_SPEED = 4.0 * jnp.pi
 """Loom speed [rad/s] whose cycle lasts 1 s: rigid tables are evaluated with it at t = τ (a
@@ -104,17 +104,24 @@ class RigidArm(eqx.Module):
 
 def rigid_arm(model: DobbyModel, phase) -> RigidArm:
     """:class:`RigidArm` at phases τ (speed-free; see the module docstring)."""
-    chain, plan = model.chain, model.lift_plan
-    speed = REFERENCE_SPEED if plan is None else 2.0 * jnp.pi * model.picks
+    return rigid_arm_of(model.chain, model.crank_start, phase, model.lift_plan,
+                        None if model.lift_plan is None else model.picks)
+
+
+def rigid_arm_of(chain, crank_start, phase, plan=None, picks=None) -> RigidArm:
+    """:func:`rigid_arm` from the linkage ``chain`` and the crank angle at t = 0
+    (``crank_start`` [rad], :attr:`jaxdobby.dobby.DobbyModel.crank_start`) alone: no finite
+    elements, so a batch whose linkage is not sampled computes it once for all its lanes.
+    ``plan``, ``picks``: a lift plan and its repeat in picks (None: plain weave)."""
+    speed = REFERENCE_SPEED if plan is None else 2.0 * jnp.pi * picks
 
     def one(tau):
         def theta(t):
-            return arm_angle_from_crank(chain, crank_angle(chain, model.crank_start, t,
-                                                           speed, plan))
+            return arm_angle_from_crank(chain, crank_angle(chain, crank_start, t, speed, plan))
 
         th, th1, th2 = time_derivatives(theta, tau)
-        n = ring_link_direction_from_crank(chain, crank_angle(chain, model.crank_start, tau,
-                                                              speed, plan))
+        n = ring_link_direction_from_crank(chain, crank_angle(chain, crank_start, tau, speed,
+                                                              plan))
         c, s = jnp.cos(th), jnp.sin(th)
         return RigidArm(tau, c, s, th1, th2, jnp.stack([c * n[0] + s * n[1], -s * n[0] + c * n[1]]))
 
@@ -144,25 +151,41 @@ class StageTables(eqx.Module):
 
 
 def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTables:
-    """:class:`StageTables` at the phases of ``rigid`` for a cycle of ``period`` T [s]."""
-    omega, alpha = rigid.rate / period, rigid.accel / period**2
-    frame = Frame(rigid.cos, rigid.sin, omega, alpha, rigid.phase)
-    shape = rigid.phase.shape
-    zero = jnp.zeros(shape + (2,))
-    ct = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(
-        ds, jax.tree.map(lambda a: a.reshape(-1), frame), zero.reshape(-1, 2),
-        zero.reshape(-1, 2))
-    ct = jax.tree.map(lambda a: a.reshape(shape + a.shape[1:]), ct)
-    link = ct.grad_body * ct.phi[..., None]  # link-11 force on the arm, body frame [N]
+    """:class:`StageTables` at the phases of ``rigid`` for a cycle of ``period`` T [s].
+
+    One sample: ``period`` a scalar. A batch with its lanes last (as
+    :mod:`jaxdobby.periodic.steady` runs one): ``period`` (B,), every leaf of ``arm`` and ``ds``
+    with a trailing lane axis, ``rigid`` shared by the lanes; every table then has the lanes
+    last, e.g. ``stiffness`` (..., k, k, B).
+    """
+    shape, lanes = rigid.phase.shape, jnp.shape(period)
+
+    def node(a):  # a rigid table, broadcast against the lanes
+        return jnp.broadcast_to(a.reshape(a.shape + (1,) * len(lanes)), shape + lanes)
+
+    def per_node(a, axes=1):  # a lane quantity (k..., lanes) against the phases' axes
+        return jnp.expand_dims(a, tuple(range(len(shape), len(shape) + axes)))
+
+    omega, alpha = node(rigid.rate) / period, node(rigid.accel) / period**2
+    cos, sin = node(rigid.cos), node(rigid.sin)
+    frame = Frame(cos, sin, omega, alpha, node(rigid.phase))
+    zero = jnp.zeros(2)
+    ct = jax.vmap(chain_terms, in_axes=(None, 0, None, None))(
+        ds, jax.tree.map(lambda a: a.reshape((-1,) + lanes), frame), zero, zero)
+    # kept in memory (a conditional XLA must materialise: without it the chain's terms are
+    # recomputed in each of their consumers, once per entry of the k × k stiffness tables)
+    ct = stored(jax.tree.map(lambda a: a.reshape(shape + a.shape[1:]), ct),
+                jnp.ravel(period)[0])
+    link = ct.grad_body * per_node(ct.phi)  # link-11 force on the arm, body frame [N]
+    link_x, link_y = (jnp.take(link, i, axis=len(shape)) for i in (0, 1))
     g0 = arm.gravity
-    field = jnp.stack([-g0 * rigid.sin, -g0 * rigid.cos], axis=-1)
-    n = rigid.ring
-    coef = jnp.stack([jnp.ones(shape), omega**2, alpha, field[..., 0], field[..., 1],
-                      link[..., 0], link[..., 1], n[..., 0]**2, n[..., 0] * n[..., 1],
-                      n[..., 1]**2], axis=-1)
-    stiffness = jnp.einsum("...s,sij->...ij", coef, arm.stiffness)
-    force = (omega[..., None]**2 * arm.centrifugal - alpha[..., None] * arm.euler
-             + field @ arm.translation.T)
+    field_x, field_y = -g0 * sin, -g0 * cos
+    n_x, n_y = node(rigid.ring[..., 0]), node(rigid.ring[..., 1])
+    coef = (jnp.ones(shape + lanes), omega**2, alpha, field_x, field_y, link_x, link_y, n_x**2,
+            n_x * n_y, n_y**2)
+    stiffness = sum(per_node(c, 2) * arm.stiffness[i] for i, c in enumerate(coef))
+    force = (per_node(omega**2) * arm.centrifugal - per_node(alpha) * arm.euler
+             + per_node(field_x) * arm.translation[:, 0] + per_node(field_y) * arm.translation[:, 1])
     return StageTables(frame=frame, stiffness=stiffness, force=force, height=ct.height,
                        velocity=ct.slope * ct.beta_rate,
                        acceleration=ct.slope * ct.h_beta + ct.curvature * ct.beta_rate**2,

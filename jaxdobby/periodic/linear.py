@@ -33,11 +33,14 @@ cycle's relative periodicity residual (:func:`jaxdobby.steady_state.relative_res
 one and two chord steps (1e-4, 8e-7 at most); from the static equilibrium it takes a cycle
 more to get there (1, 9e-4, 9e-7, 2e-9).
 
-**What it costs** (128 samples of the default design through :func:`linearise_lanes`, one
-pinned core, ad hoc, 2026-12-05): ~0.56 ms per sample, of which the product Φ ← ΨΦ of the
-2k × 2k matrices at every step is ~0.20 and the step maps Ψ ~0.03; the rest (~0.33) are the
-frozen matrices, the chain's Jacobian and the inversions, which the passes need anyway. A
-nonlinear cycle costs ~0.48 ms per sample on the same machine.
+**What it costs** (256 samples of the default design, lanes last, one pinned core, ad hoc,
+2026-12-07, with the chunk's compile options of :mod:`jaxdobby.sensitivity.batch` left at
+their earlier value): ~0.61 ms per sample, of which the chain's frozen matrices and forces
+~0.18; the product Φ ← ΨΦ and the step maps Ψ cost nothing measurable lanes last (~0.20 of
+0.56 ms lanes first, 2026-12-05); the rest are the inversions, which the passes need anyway.
+Without materialising the chain's terms (``key``) XLA recomputed them in each entry of the
+matrices built from them: 1.03 ms per sample. A nonlinear cycle costs ~0.24 ms per sample
+on the same machine.
 """
 
 from __future__ import annotations
@@ -83,13 +86,16 @@ def chain_jacobian(ds: Downstream, frame, u, u_rate, acc):
     return gl.transpose(cols[:2]), gl.transpose(cols[2:])
 
 
-def frozen_matrices(arm: ArmTerms, ds: Downstream, mid):
+def frozen_matrices(arm: ArmTerms, ds: Downstream, mid, key=None):
     """(M̄, C̄, K̄) at the rigid motion for one step, from the tables ``mid`` of its middle node
-    (see the module docstring)."""
+    (see the module docstring); ``key``: the chain's terms kept in memory
+    (:func:`~jaxdobby.periodic.collocation.stored`)."""
     k = arm.mass.shape[0]
     zero = jnp.zeros(2)
     ct = chain_terms(ds, mid.frame, zero, zero)
     ju, jud = chain_jacobian(ds, mid.frame, zero, zero, jnp.zeros(k))
+    if key is not None:
+        ct, ju, jud = gl.stored((ct, ju, jud), key)
     mass = arm.mass + ct.mu * ct.g[:, None] * ct.g[None, :]
     damp = arm.damping + 2.0 * mid.frame.omega * arm.gyroscopic - gl.matmul(jud, ds.rows)
     stiff = mid.stiffness - gl.matmul(ju, ds.rows)
@@ -162,11 +168,14 @@ def step_map(solver: gl.StageSolver, damp, stiff, h):
                             jnp.concatenate([vq, vv], axis=1)])
 
 
-def rest_forces(arm: ArmTerms, ds: Downstream, st) -> Array:
+def rest_forces(arm: ArmTerms, ds: Downstream, st, key=None) -> Array:
     """The stage forces of the linearised equations at the rigid motion, f + g φ at q = 0,
-    (3, k) for a step's three nodes (tables ``st`` with leading axis 3)."""
-    zero = jnp.zeros((st.force.shape[0], 2))
-    ct = jax.vmap(chain_terms, in_axes=(None, 0, 0, 0))(ds, st.frame, zero, zero)
+    (3, k) for a step's three nodes (tables ``st`` with leading axis 3); ``key``: as
+    :func:`frozen_matrices`'."""
+    zero = jnp.zeros(2)
+    ct = jax.vmap(chain_terms, in_axes=(None, 0, None, None))(ds, st.frame, zero, zero)
+    if key is not None:
+        ct = gl.stored(ct, key)
     return st.force + ct.phi[:, None] * ct.g
 
 
@@ -185,53 +194,24 @@ def _frozen_step(carry, mass, damp, stiff, forces, h, key):
 def linearise(arm: ArmTerms, ds: Downstream, tables: StageTables, period) -> Linearisation:
     """:class:`Linearisation` of one sample's cycle (tables with leading axes (N, 3)).
 
-    For a batch, :func:`linearise_lanes` computes the same with the lanes last."""
+    A batch with its lanes last (as :func:`jaxdobby.periodic.cycle.tables_at` builds its
+    tables: ``period`` (B,), every leaf with a trailing lane axis) gives the same with the lanes
+    last: the solvers' leaves (N, ..., B), Φ (2k, 2k, B) and d (2k, B).
+    """
     n_steps = tables.height.shape[0]
     h = period / n_steps
     k = arm.mass.shape[0]
+    lanes = jnp.shape(period)
 
     def step(carry, index):
         st = jax.tree.map(lambda a: a[index], tables)
         mid = jax.tree.map(lambda a: a[1], st)
-        mass, damp, stiff = gl.stored(frozen_matrices(arm, ds, mid), index)
-        return _frozen_step(carry, mass, damp, stiff, rest_forces(arm, ds, st), h, index)
+        mass, damp, stiff, forces = gl.stored((*frozen_matrices(arm, ds, mid, index),
+                                               rest_forces(arm, ds, st, index)), index)
+        return _frozen_step(carry, mass, damp, stiff, forces, h, index)
 
-    (phi, d), solvers = jax.lax.scan(step, (jnp.eye(2 * k), jnp.zeros(2 * k)),
+    eye = jnp.broadcast_to(jnp.eye(2 * k).reshape((2 * k, 2 * k) + (1,) * len(lanes)),
+                           (2 * k, 2 * k) + lanes)
+    (phi, d), solvers = jax.lax.scan(step, (eye, jnp.zeros((2 * k,) + lanes)),
                                      jnp.arange(n_steps))
     return Linearisation(solvers, phi, d)
-
-
-def linearise_lanes(arm: ArmTerms, ds: Downstream, tables: StageTables, period
-                    ) -> Linearisation:
-    """:func:`linearise` of a batch of B samples (every argument with a leading batch axis,
-    tables (B, N, 3, ...)), with the solvers step-major, leaves (N, B, ...), as the batched
-    passes read them, Φ (B, 2k, 2k) and d (B, 2k).
-
-    The chain's terms of each step are evaluated lane by lane (``jax.vmap``), then the
-    step's linear algebra runs with the lanes last: under ``jax.vmap`` the unrolled products
-    index the small matrix axes *behind* the lanes (strided), and the 8 × 8 products of Φ and
-    the Ψ assembly cost about a quarter of the linearisation more (ad hoc, 256 samples, one
-    core, 2026-12-02: 0.62 against 0.49 ms per sample).
-    """
-    n_steps = tables.height.shape[1]
-    h = period / n_steps  # (B,): broadcasts against the lanes last
-    size, k = arm.mass.shape[:2]
-
-    def last(a):
-        return jnp.moveaxis(a, 0, -1)
-
-    def step(carry, index):
-        # step n's tables sliced here rather than scanned over: a scan over a batch's tables
-        # first copies them step-major, a slice reads them where they are
-        st = jax.tree.map(lambda a: a[:, index], tables)
-        mid = jax.tree.map(lambda a: a[:, 1], st)
-        mats = jax.vmap(frozen_matrices)(arm, ds, mid)
-        forces = jax.vmap(rest_forces)(arm, ds, st)
-        mass, damp, stiff, forces = gl.stored(tuple(last(a) for a in (*mats, forces)), index)
-        carry, solver = _frozen_step(carry, mass, damp, stiff, forces, h, index)
-        return carry, jax.tree.map(lambda a: jnp.moveaxis(a, -1, 0), solver)
-
-    eye = jnp.broadcast_to(jnp.eye(2 * k)[..., None], (2 * k, 2 * k, size))
-    (phi, d), solvers = jax.lax.scan(step, (eye, jnp.zeros((2 * k, size))),
-                                     jnp.arange(n_steps))
-    return Linearisation(solvers, jnp.moveaxis(phi, -1, 0), jnp.moveaxis(d, -1, 0))

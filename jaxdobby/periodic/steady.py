@@ -51,16 +51,18 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax import Array
-from jax.custom_batching import custom_vmap, sequential_vmap
+from jax.custom_batching import custom_vmap
 
 from .._x64 import require_x64
 from ..dobby import DobbyModel, build_model
+from ..kinematics import dead_centres
 from ..parameters import Setup
 from ..steady_state import relative_residual
 from . import collocation as gl
 from .chain import Downstream, downstream
-from .cycle import ArmTerms, StageTables, arm_terms, node_phases, rigid_arm, tables_at
-from .linear import linearise, linearise_lanes
+from .cycle import (ArmTerms, RigidArm, StageTables, arm_terms, node_phases, rigid_arm,
+                    rigid_arm_of, tables_at)
+from .linear import linearise
 from .stepper import cycle_pass
 
 DEFAULT_STEPS = 432
@@ -94,20 +96,88 @@ class Cycle(eqx.Module):
     period: Array
 
 
+class Terms(eqx.Module):
+    """What a sample's cycle needs besides the rigid motion: the arm's Kane terms, the chain's
+    constants and the cycle time T [s]."""
+
+    arm: ArmTerms
+    downstream: Downstream
+    period: Array
+
+
 def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
     """Build the coupled model of ``setup`` (finite elements, modal reduction) and tabulate its
-    rigid motion on ``steps`` steps per cycle.
-
-    :func:`steady_state_metrics` does the same (with the model's coupled frequencies when
-    asked) once per sample, *sequentially* over a batch
-    (``jax.custom_batching.sequential_vmap``): it is where the LAPACK calls are (Cholesky,
-    ``eigh``, LU of the 31-DOF arm), and jaxlib spreads a batched LAPACK call over the CPU's
-    intra-op threads and blocks one of them until the pieces finish, so two such calls running
-    side by side on a 2-core CPU wait on each other for ever (seen with chunks of 256 samples).
-    One matrix at a time never splits. It is a small part of a sample's cost; the cycle passes,
-    which are all of the rest, stay vectorised over the batch.
-    """
+    rigid motion on ``steps`` steps per cycle: one sample's :class:`Cycle`."""
     return cycle_of(build_model(setup.machine, setup.operating), steps)
+
+
+def model_terms(setup: Setup, *, frequencies: bool = False):
+    """(:class:`Terms`, coupled natural frequencies [Hz] or None) of ``setup``; vmapped, one
+    sample at a time (``jax.custom_batching.sequential_vmap``).
+
+    Here are the LAPACK calls (Cholesky, ``eigh``, LU of the 31-DOF arm), and jaxlib spreads a
+    batched LAPACK call over the CPU's intra-op threads and blocks one of them until the
+    pieces finish, so two such calls running side by side on a 2-core CPU wait on each other
+    for ever (seen with chunks of 256 samples). One matrix at a time never splits. It is a small
+    part of a sample's cost; the tables and the cycle passes, which are all of the rest, stay
+    vectorised over the batch. ``frequencies``: see :func:`steady_state_metrics`.
+    """
+    dynamic, static = eqx.partition(setup, eqx.is_array)
+
+    def one(d):
+        s = eqx.combine(d, static)
+        model = build_model(s.machine, s.operating)
+        terms = Terms(arm_terms(model), downstream(model), jnp.asarray(model.period))
+        if not frequencies:
+            return terms, None
+        from ..validity import phase_frequencies
+
+        return terms, phase_frequencies(model)
+
+    return _lane_by_lane(one)(dynamic)
+
+
+def _lane_by_lane(f):
+    """``f`` vmapped one sample at a time (as ``jax.custom_batching.sequential_vmap``), its
+    results written with the lanes last into buffers (..., B) and handed on as their
+    transposes (B, ...), as a batching rule must.
+
+    :func:`batch_terms` transposes them back: XLA cancels the two transposes, and the passes
+    read the buffers as written, lanes last and contiguous. Stacked lanes first (as
+    ``sequential_vmap`` stacks them), the transpose to lanes last is made free by laying its
+    result out lanes first, and every step of every pass read the arm's terms strided: 1.93–2.06
+    against 1.75–1.80 ms per sample (256 samples of the default design, one pinned core,
+    2026-12-07).
+    """
+    @custom_vmap
+    def mapped(x):
+        return f(x)
+
+    @mapped.def_vmap
+    def rule(size, batched, x):
+        x = jax.tree.map(lambda a, b: a if b else jnp.broadcast_to(a, (size,) + jnp.shape(a)),
+                         x, batched[0])
+        shapes = jax.eval_shape(f, jax.tree.map(lambda a: a[0], x))
+        buffers = jax.tree.map(lambda a: jnp.zeros(a.shape + (size,), a.dtype), shapes)
+
+        def one_lane(i, buffers):
+            out = f(jax.tree.map(lambda a: a[i], x))
+            return jax.tree.map(lambda b, o: b.at[..., i].set(o), buffers, out)
+
+        buffers = jax.lax.fori_loop(0, size, one_lane, buffers)
+        out = jax.tree.map(lambda b: jnp.moveaxis(b, -1, 0), buffers)
+        return out, jax.tree.map(lambda _: True, out)
+
+    return mapped
+
+
+def rigid_motion(setup: Setup, steps: int = DEFAULT_STEPS) -> RigidArm:
+    """The rigid arm's motion at the collocation nodes of ``steps`` steps per cycle, from the
+    linkage alone (the crank start as :func:`~jaxdobby.dobby.build_model`'s): a batch whose
+    linkage is not sampled computes it once for all its lanes."""
+    chain = setup.machine.chain
+    (crank_start, _), _ = dead_centres(chain)
+    return rigid_arm_of(chain, crank_start, node_phases(steps))
 
 
 def cycle_of(model: DobbyModel, steps: int = DEFAULT_STEPS) -> Cycle:
@@ -142,20 +212,9 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
     if setup.machine.coupling != "two-way":
         raise ValueError("the batch evaluator solves the two-way coupled model; got coupling="
                          f"{setup.machine.coupling!r} (use jaxdobby.simulate for one-way)")
-    dynamic, static = eqx.partition(setup, eqx.is_array)
-
-    def one(d):
-        s = eqx.combine(d, static)
-        model = build_model(s.machine, s.operating)
-        if not frequencies:
-            return cycle_of(model, steps), None
-        from ..validity import phase_frequencies
-
-        return cycle_of(model, steps), phase_frequencies(model)
-
-    cycle, freqs = sequential_vmap(one)(dynamic)
-    passes, residual, hi, lo, reachable = _solve(cycle, tolerance=tolerance,
-                                                 max_passes=max_passes)
+    terms, freqs = model_terms(setup, frequencies=frequencies)
+    passes, residual, hi, lo, reachable = _solve(terms, rigid_motion(setup, steps),
+                                                 tolerance=tolerance, max_passes=max_passes)
     out = {
         "deviation_pp": hi[0] - lo[0],
         "deviation_max": hi[0],
@@ -185,9 +244,11 @@ class _Lanes(NamedTuple):
 
 
 def _start(x: Array) -> _Lanes:
-    nan3 = jnp.full(x.shape[:-1] + (3,), jnp.nan)
-    return _Lanes(jnp.zeros(x.shape[:-1], int), x, jnp.full(x.shape[:-1], jnp.inf), nan3, nan3,
-                  jnp.ones(x.shape[:-1], bool))
+    """The iteration's state before any cycle, from x (2k, lanes...)."""
+    lanes = x.shape[1:]
+    nan3 = jnp.full((3,) + lanes, jnp.nan)
+    return _Lanes(jnp.zeros(lanes, int), x, jnp.full(lanes, jnp.inf), nan3, nan3,
+                  jnp.ones(lanes, bool))
 
 
 def _chord_pass(cycle: Cycle, solvers, chord_matrix: Array, lanes: _Lanes, tables=None,
@@ -202,7 +263,42 @@ def _chord_pass(cycle: Cycle, solvers, chord_matrix: Array, lanes: _Lanes, table
                   relative_residual(x, run.end), run.maxima, run.minima, run.reachable)
 
 
-def _solve(cycle: Cycle, *, tolerance: float, max_passes: int):
+def batch_terms(terms: Terms, batched, size: int) -> Terms:
+    """A batch's :class:`Terms` with the lanes last: each leaf (..., B), from a batch of
+    ``size`` lanes with the leaves marked in ``batched`` (pytree of bools) batched on axis 0
+    and the others shared (broadcast to every lane)."""
+    return jax.tree.map(lambda a, b: jnp.moveaxis(a, 0, -1) if b else
+                        jnp.broadcast_to(a[..., None], jnp.shape(a) + (size,)), terms, batched)
+
+
+def batch_tables(terms: Terms, rigid: RigidArm, batched=False) -> StageTables:
+    """The tables of a batch with the lanes last (:func:`batch_terms`): built so from a rigid
+    motion the lanes share; a rigid motion batched on axis 0 (``batched``: pytree of bools, a
+    linkage sampled with the rest) lane by lane, then transposed (see :func:`_solve`)."""
+    if not any(jax.tree.leaves(batched)):
+        return tables_at(terms.arm, terms.downstream, rigid, terms.period)
+    size = terms.period.shape[-1]
+    rigid = jax.tree.map(lambda a, b: a if b else jnp.broadcast_to(a, (size,) + a.shape),
+                         rigid, batched)
+    first = jax.tree.map(lambda a: jnp.moveaxis(a, -1, 0), terms)
+    return jax.tree.map(lambda a: jnp.moveaxis(a, 0, -1), jax.vmap(tables_at)(
+        first.arm, first.downstream, rigid, first.period))
+
+
+def batch_linearise(terms: Terms, tables: StageTables):
+    """The linearisation of a batch with the lanes last (:func:`batch_terms`,
+    :func:`batch_tables`): (the :class:`Cycle` without its tables, the
+    :class:`~jaxdobby.periodic.linear.Linearisation`, the chord matrix (I − Φ)⁻¹ and the start
+    state x_lin), each with the lanes last."""
+    lin = linearise(terms.arm, terms.downstream, tables, terms.period)
+    i_phi = jnp.moveaxis(jnp.eye(lin.monodromy.shape[0])[..., None] - lin.monodromy, -1, 0)
+    # one matrix at a time (a batched LAPACK call can deadlock a 2-core CPU: see model_terms)
+    chord_matrix = jnp.moveaxis(jax.lax.map(jnp.linalg.inv, i_phi), 0, -1)
+    rest = Cycle(terms.arm, terms.downstream, None, terms.period)
+    return rest, lin, chord_matrix, gl.matmul(chord_matrix, lin.rest_response)
+
+
+def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
     """The chord iteration of one sample from the linearised periodic state, until the residual
     is ≤ ``tolerance`` or ``max_passes`` cycles ran.
 
@@ -210,25 +306,23 @@ def _solve(cycle: Cycle, *, tolerance: float, max_passes: int):
     ``lax.while_loop``. A batch (``jax.vmap``, through ``jax.custom_batching.custom_vmap``)
     does not:
 
-    * the linearisation runs with the lanes last (:func:`~jaxdobby.periodic.linear.linearise_lanes`)
-      and every pass reads step n of the tables where they are, (batch, N, 3, ...), by a slice
-      (a scan over a batch's tables first copies them step-major, for every pass: half a
-      pass's time);
+    * every array of the batch has its lanes *last*: the tables (N, 3, ..., B), built so by
+      :func:`~jaxdobby.periodic.cycle.tables_at` from the rigid motion the lanes share, the
+      solvers, Φ and the states, and the linearisation and the passes are those of one sample
+      run on them (the unrolled small products of :mod:`jaxdobby.periodic.collocation` then
+      loop over contiguous lanes). Lanes first, as ``jax.vmap`` lays them out, the inner axes
+      are the 3 nodes and the k modes: measured (256 samples of the default design, one pinned
+      core, 2026-12-07) a pass cost 0.39 ms per sample so against 0.25 lanes last. The tables
+      are built lanes last, not transposed: XLA makes a transpose free by giving its result
+      the operand's layout, so every step then read its tables strided (a pass 0.45 ms). A
+      linkage sampled with the rest (the rigid motion differs per lane) builds them lane by
+      lane and transposes them.
     * the first :data:`FULL_CYCLES` cycles run for every lane at once, the rest in rounds: a
       vmapped while loop would run every lane until the slowest has converged (on 256 samples
-      of the default box the lanes need 2 to 4 cycles); here each round integrates one cycle
-      for W of the lanes still pending (the first W; W = :data:`ROUND_WIDTH`), reading their
-      tables and solvers step by step out of the batch's (a gather per step: a lane's cycle
-      costs ~1.4 times its cycle in a full pass), until none is pending. Each lane goes
-      through the same cycles as alone; the batch integrates about the cycles its lanes need.
-
-    Measured (256 samples of the default design, one core, ad hoc, 2026-12-02, this machine's
-    speed varying ±10 % between runs): 1.5–1.6 ms per sample; 1.7 with every cycle after the
-    first in rounds of 64; W = 32 slightly better than 64 and 128 (1.45–1.8 against
-    1.55–2.3 and 1.6 ms). ``benchmarks/batch_profile.py`` (compiled as ``jaxdobby sobol``
-    compiles, one pinned core, 2026-12-02, ``results/batch_profile.json``): prepare 0.34,
-    linearisation 0.26, a full cycle 0.36 ms per sample; 1.44–1.46 ms per sample in all,
-    W = 32, 64 or 128 alike.
+      of the default box the lanes need 2 to 4 cycles); here each round gathers W of the lanes
+      still pending (the first W; W = :data:`ROUND_WIDTH`) with their tables and solvers and
+      integrates one cycle for them, until none is pending. Each lane goes through the same
+      cycles as alone; the batch integrates about the cycles its lanes need.
     """
     def pending(lanes):
         return (lanes.passes < min(FULL_CYCLES, max_passes)) | ((lanes.passes < max_passes)
@@ -238,7 +332,9 @@ def _solve(cycle: Cycle, *, tolerance: float, max_passes: int):
         return lanes.passes, lanes.residual, lanes.maxima, lanes.minima, lanes.reachable
 
     @custom_vmap
-    def solve(cycle):
+    def solve(terms, rigid):
+        cycle = Cycle(terms.arm, terms.downstream,
+                      tables_at(terms.arm, terms.downstream, rigid, terms.period), terms.period)
         lin = linearise(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
         chord_matrix = jnp.linalg.inv(jnp.eye(lin.monodromy.shape[0]) - lin.monodromy)
         x = chord_matrix @ lin.rest_response
@@ -246,56 +342,37 @@ def _solve(cycle: Cycle, *, tolerance: float, max_passes: int):
             pending, lambda c: _chord_pass(cycle, lin.solvers, chord_matrix, c), _start(x)))
 
     @solve.def_vmap
-    def solve_batch(size, batched, cycle):
-        cycle = jax.tree.map(lambda a, b: a if b else jnp.broadcast_to(a, (size,) + jnp.shape(a)),
-                             cycle, batched[0])
+    def solve_batch(size, batched, terms, rigid):
+        terms = batch_terms(terms, batched[0], size)
+        tables = batch_tables(terms, rigid, batched[1])
+        rest, lin, chord_matrix, x = batch_linearise(terms, tables)
         width = min(size, ROUND_WIDTH)
-        steps = cycle.tables.height.shape[1]
-        tables = cycle.tables  # lane-major, (batch, N, 3, ...)
-        rest = eqx.tree_at(lambda c: c.tables, cycle, None)
 
-        lin = linearise_lanes(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
-        i_phi = jnp.eye(lin.monodromy.shape[-1]) - lin.monodromy
-        # one matrix at a time (a batched LAPACK call can deadlock a 2-core CPU: see prepare)
-        chord_matrix = jax.lax.map(jnp.linalg.inv, i_phi)
-        x = jax.vmap(gl.matmul)(chord_matrix, lin.rest_response)
+        def full_cycle(lanes):
+            return _chord_pass(rest, lin.solvers, chord_matrix, lanes, tables=tables)
 
-        def full_pass(c, t, s, m, lanes):
-            def table_at(n):
-                return jax.tree.map(lambda a: a[n], t)
-
-            return _chord_pass(c, s, m, lanes, tables=table_at, steps=steps)
-
-        def full_cycle(_, lanes):
-            return jax.vmap(full_pass, in_axes=(0, 0, 1, 0, 0))(rest, tables, lin.solvers,
-                                                                chord_matrix, lanes)
-
-        # a loop, not a Python for: one copy of the pass in the program (compile time)
-        lanes = jax.lax.fori_loop(0, min(FULL_CYCLES, max_passes), full_cycle, _start(x))
-
-        def lane_pass(lane, c, m, lanes):
-            def table_at(n):
-                return jax.tree.map(lambda a: a[lane, n], tables)
-
-            def solver_at(n):
-                return jax.tree.map(lambda a: a[n, lane], lin.solvers)
-
-            return _chord_pass(c, solver_at, m, lanes, tables=table_at, steps=steps)
+        # a Python loop, not a fori_loop: a pass (a scan) inside another loop ran 8-10 % slower
+        # in all (2026-12-07, 256 samples, one pinned core: 2.49 against 2.28 ms per sample;
+        # with the compile options of jaxdobby.sensitivity.batch, 2.31 against 1.77), for a
+        # second copy of the pass in the program (compiled 2-3 s longer)
+        lanes = _start(x)
+        for _ in range(min(FULL_CYCLES, max_passes)):
+            lanes = full_cycle(lanes)
 
         def one_round(lanes):
             todo = pending(lanes)
             pick = jnp.argsort(jnp.where(todo, 0, 1), stable=True)[:width]
-            take = jax.tree.map(lambda a: a[pick], (rest, chord_matrix, lanes))
-            new = jax.vmap(lane_pass)(pick, *take)
+            # the W lanes' tables and solvers copied once per round, then read in place
+            part, matrix, state, t, sv = jax.tree.map(
+                lambda a: a[..., pick], (rest, chord_matrix, lanes, tables, lin.solvers))
+            new = _chord_pass(part, sv, matrix, state, tables=t)
             keep = todo[pick]
-
-            def put(old, value):
-                mask = keep.reshape(keep.shape + (1,) * (value.ndim - 1))
-                return old.at[pick].set(jnp.where(mask, value, old[pick]))
-
-            return jax.tree.map(put, lanes, new)
+            return jax.tree.map(
+                lambda old, value: old.at[..., pick].set(jnp.where(keep, value, old[..., pick])),
+                lanes, new)
 
         out = result(jax.lax.while_loop(lambda c: jnp.any(pending(c)), one_round, lanes))
+        out = jax.tree.map(lambda a: jnp.moveaxis(a, -1, 0), out)
         return out, jax.tree.map(lambda _: True, out)
 
-    return solve(cycle)
+    return solve(terms, rigid)

@@ -78,11 +78,17 @@ def _residuals(arm: ArmTerms, ds: Downstream, st: StageTables, pos, vel, acc, ke
     return out if key is None else gl.stored(out, key)
 
 
+def _outer(g):
+    """g gᵀ of a (k, lanes...) vector."""
+    return g[:, None] * g[None]
+
+
 def _parabola_peaks(t, y):
     """Largest and smallest values of the parabolas through (t, y)[j−1:j+2] at interior local
-    extrema of the sequence y (last axis), else the samples themselves."""
-    tm, t0, tp = t[..., :-2], t[..., 1:-1], t[..., 2:]
-    ym, y0, yp = y[..., :-2], y[..., 1:-1], y[..., 2:]
+    extrema of the sequences y (signal, sequence, lanes...) at times t (1, sequence, lanes...),
+    else the samples themselves; each (signal, lanes...)."""
+    tm, t0, tp = t[:, :-2], t[:, 1:-1], t[:, 2:]
+    ym, y0, yp = y[:, :-2], y[:, 1:-1], y[:, 2:]
     a, b = tm - t0, tp - t0
     dm, dp = (ym - y0) / a, (yp - y0) / b
     r = (dp - dm) / (b - a)
@@ -93,7 +99,7 @@ def _parabola_peaks(t, y):
     is_min = (y0 <= ym) & (y0 <= yp) & (r > 0.0)
     hi = jnp.where(is_max, vertex, y0)
     lo = jnp.where(is_min, vertex, y0)
-    return jnp.nanmax(hi, axis=-1), jnp.nanmin(lo, axis=-1)
+    return jnp.nanmax(hi, axis=1), jnp.nanmin(lo, axis=1)
 
 
 def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
@@ -148,7 +154,7 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
         res, ct = _residuals(arm, ds, st, pos, vel, acc, index)
         if solvers is None:
             mid = jax.tree.map(lambda a: a[1], st)
-            mass = arm.mass + ct.mu[1] * jnp.outer(ct.g[1], ct.g[1])
+            mass = arm.mass + ct.mu[1] * _outer(ct.g[1])
             stiff = mid.stiffness
             damp = arm.damping + 2.0 * mid.frame.omega * arm.gyroscopic
             if full_jacobian:
@@ -181,22 +187,23 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
                 ds, st.frame, gl.matmul(pos, gl.transpose(rows)))
             head = jnp.where(index == 0, values[:, :2], head)
             ext = (t_seq[-2:], y_seq[:, -2:], head, jnp.fmax(hi, new_hi), jnp.fmin(lo, new_lo),
-                   ok & jnp.all(reach))
+                   ok & jnp.all(reach, axis=0))
         return (qn, vn, acc, tan, ext), ((q, v, acc) if record else None)
 
     # starting predictor: q̈ from the equations at the initial state and the first node
     step0 = jax.tree.map(lambda a: a[0], xs_tables) if table_at is None else table_at(0)
     first = jax.tree.map(lambda a: a[:1], step0)
     q0, v0 = x0[:k], x0[k:]
-    res0, ct0 = _residuals(arm, ds, first, q0[None], v0[None], jnp.zeros((1, k)))
-    a0 = gl.solve(arm.mass + ct0.mu[0] * jnp.outer(ct0.g[0], ct0.g[0]), res0[0])
-    prev = jnp.tile(a0, (3, 1))
+    lanes = x0.shape[1:]
+    res0, ct0 = _residuals(arm, ds, first, q0[None], v0[None], jnp.zeros((1, k) + lanes))
+    a0 = gl.solve(arm.mass + ct0.mu[0] * _outer(ct0.g[0]), res0[0])
+    prev = jnp.broadcast_to(a0, (3,) + a0.shape)
     tan0 = jnp.zeros((2 * k, 0)) if tangents is None else tangents
     ext0 = ()
     if outputs:
-        nan2 = jnp.full((3, 2), jnp.nan)
-        ext0 = (jnp.full(2, jnp.nan), nan2, nan2, jnp.full(3, -jnp.inf), jnp.full(3, jnp.inf),
-                jnp.array(True))
+        nan2 = jnp.full((3, 2) + lanes, jnp.nan)
+        ext0 = (jnp.full((2,) + lanes, jnp.nan), nan2, nan2, jnp.full((3,) + lanes, -jnp.inf),
+                jnp.full((3,) + lanes, jnp.inf), jnp.ones(lanes, bool))
     (q, v, _, tan, ext), trajectory = jax.lax.scan(step, (q0, v0, prev, tan0, ext0),
                                                    (jnp.arange(n_steps), xs_tables, xs_solvers))
     if outputs:
@@ -207,6 +214,6 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
         seam_hi, seam_lo = _parabola_peaks(t_seq[None], y_seq)
         maxima, minima = jnp.fmax(hi, seam_hi), jnp.fmin(lo, seam_lo)
     else:
-        maxima = minima = jnp.full(3, jnp.nan)
-        ok = jnp.array(True)
+        maxima = minima = jnp.full((3,) + lanes, jnp.nan)
+        ok = jnp.ones(lanes, bool)
     return PassResult(jnp.concatenate([q, v]), tan, maxima, minima, ok, trajectory)

@@ -16,7 +16,7 @@ The samples of a chunk run one after another (``jax.custom_batching.sequential_v
 vectorised: a sample's whole computation (assembly, ``eigh``, the collocation cycle, the dense
 output) holds LAPACK calls, and jaxlib splits a batched LAPACK call over the CPU's intra-op
 threads and blocks one of them, so two of them side by side can wait on each other for ever on
-2 cores (see :func:`jaxdobby.periodic.steady.prepare`), and ``jaxdobby sobol`` runs one device
+2 cores (see :func:`jaxdobby.periodic.steady.model_terms`), and ``jaxdobby sobol`` runs one device
 per core side by side. (Measured on the slow test's 48 samples, 1 device: 19 s cold either way.)
 """
 

@@ -42,7 +42,7 @@ def sample_resonances(setup) -> Array:
     :class:`~jaxdobby.parameters.Setup` (float; > 0: a ``resonance`` warning, the condition of
     :func:`jaxdobby.validity.resonant`). The model is assembled and its frequencies found one
     sample at a time (``jax.custom_batching.sequential_vmap``, as the batch's own assembly:
-    no batched LAPACK call, :func:`jaxdobby.periodic.steady.prepare`)."""
+    no batched LAPACK call, :func:`jaxdobby.periodic.steady.model_terms`)."""
     from ..dobby import build_model
 
     dynamic, static = eqx.partition(setup, eqx.is_array)
