@@ -133,7 +133,8 @@ def warp_force(ds: Downstream, height, phase) -> Array:
 
 def chain_terms(ds: Downstream, frame: Frame, u: Array, u_rate: Array) -> ChainTerms:
     """The chain driven by the deformed arm, for elastic joint displacement u = Φ_P q and its
-    rate u̇ = Φ_P q̇ (body frame [m], [m/s], each (2,))."""
+    rate u̇ = Φ_P q̇ (body frame [m], [m/s], each (2,)). Every array may carry trailing lane
+    axes (a batch with its lanes last): vector components are indexed on the first axis."""
     c, s, om, al = frame.cos, frame.sin, frame.omega, frame.alpha
     r0, r1 = ds.joint[0] + u[0], ds.joint[1] + u[1]
     ud0, ud1 = u_rate[0], u_rate[1]

@@ -113,7 +113,7 @@ def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
 
 def model_terms(setup: Setup, *, frequencies: bool = False):
     """(:class:`Terms`, coupled natural frequencies [Hz] or None) of ``setup``; vmapped, one
-    sample at a time (``jax.custom_batching.sequential_vmap``).
+    sample at a time (:func:`_lane_by_lane`, as ``jax.custom_batching.sequential_vmap``).
 
     Here are the LAPACK calls (Cholesky, ``eigh``, LU of the 31-DOF arm), and jaxlib spreads a
     batched LAPACK call over the CPU's intra-op threads and blocks one of them until the

@@ -114,7 +114,9 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
             function of the step index n returning step n's, leading axis (3,), with ``steps``
             = N (to read a lane's tables out of a batch's without copying them first).
         period: T [s].
-        x0: initial state (q, q̇), (2k,).
+        x0: initial state (q, q̇), (2k,). A batch with its lanes last (as
+            :func:`jaxdobby.periodic.steady._solve` runs one): x0 (2k, B) and every leaf of
+            the other arguments with a trailing lane axis; the results then have it too.
         solvers: the steps' Newton matrices, inverted once beforehand
             (:class:`~jaxdobby.periodic.collocation.StageSolver` with leading axis N, from
             :func:`jaxdobby.periodic.linear.linearise`), or a function of the step index n
