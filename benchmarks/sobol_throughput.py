@@ -254,7 +254,11 @@ def main(argv=None):
     ap.add_argument("--devices", type=int, default=1, help=argparse.SUPPRESS)
     ap.add_argument("--n", type=int, default=1024, help="base samples of the design")
     ap.add_argument("--rows", type=int, default=2048, help="rows timed per pass")
-    ap.add_argument("--chunk", type=int, default=256, help="rows per chunk")
+    from jaxdobby.sensitivity.command import DEFAULT_CHUNK
+
+    ap.add_argument("--chunk", type=int, default=DEFAULT_CHUNK,
+                    help=f"rows per chunk (default {DEFAULT_CHUNK}: a plain jaxdobby sobol's, "
+                         "split over the devices)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-study", dest="study", action="store_false",
                     help="skip the full default study")
