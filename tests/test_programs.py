@@ -128,8 +128,35 @@ def test_shipped_executables_of_the_default_configuration_are_current(default_se
         # no feature its code cannot use is required of the CPU that loads it
         assert not programs.variant_features(path) & programs.SYSTEM_FEATURES, path.name
     for stem in stems:  # and none needs more features than another variant of its program
+        # built under the same instruction-set cap (an AVX-512 chunk beside the AVX2 one)
         features = list(map(programs.variant_features, programs.executable_variants(stem)))
-        assert not any(a < b for a in features for b in features), stem
+        assert not any(a < b and programs.isa_level(a) == programs.isa_level(b)
+                       for a in features for b in features), stem
+
+
+def test_the_variant_of_the_most_features_that_fits_is_loaded(monkeypatch):
+    """Where an AVX-512 and an AVX2 variant of the Sobol chunk both fit the CPU, the AVX-512
+    one is loaded (its loops are the batch's lanes: 512-bit vectors pay); on a CPU without
+    AVX-512 the AVX2 one. Checked through the loader on the variants' own feature sets."""
+    from jax.experimental import serialize_executable
+
+    wide = [p for p in programs.SHIPPED.glob("sobol-dobby-chunk-*.xlaexe")
+            if programs.isa_level(programs.variant_features(p)) == programs.WIDE_ISA]
+    if not wide:
+        pytest.skip("no AVX-512 chunk variant ships (shipped from a CPU without AVX-512)")
+    key = wide[0].name.split(".")[0] + ".xlaexe"
+    variants = {programs.isa_level(programs.variant_features(p)): p
+                for p in programs.executable_variants(key)}
+    loaded = []
+    monkeypatch.setattr(serialize_executable, "deserialize_and_load",
+                        lambda serialized, *a, **k: loaded.append(
+                            programs.isa_level(programs.compiled_features(serialized))) or "x")
+    for host, expected in [(variants[programs.WIDE_ISA], programs.WIDE_ISA),
+                           (variants[programs.EXECUTABLE_ISA], programs.EXECUTABLE_ISA)]:
+        monkeypatch.setattr(programs, "host_features",
+                            lambda host=host: programs.variant_features(host))
+        assert programs._load_first_fitting(key, None) == "x"
+        assert loaded[-1] == expected
 
 
 def test_system_features_are_marked_off_and_nothing_else_changes():
