@@ -143,11 +143,13 @@ def _lane_by_lane(f):
     transposes (B, ...), as a batching rule must.
 
     :func:`batch_terms` transposes them back: XLA cancels the two transposes, and the passes
-    read the buffers as written, lanes last and contiguous. Stacked lanes first (as
-    ``sequential_vmap`` stacks them), the transpose to lanes last is made free by laying its
-    result out lanes first, and every step of every pass read the arm's terms strided: 1.93–2.06
-    against 1.75–1.80 ms per sample (256 samples of the default design, one pinned core,
-    2026-12-07).
+    read the buffers as written, lanes last and contiguous (the optimised program's layouts
+    show it). Stacked lanes first (as ``sequential_vmap`` stacks them), XLA made the transpose
+    to lanes last free by laying its result out lanes first, and every step of every pass read
+    the arm's terms strided. Measured (256 samples of the default design, one pinned core,
+    2026-12-07, a machine varying ±10 % between runs): 1.93–2.06 ms per sample stacked lanes
+    first, 1.75–1.80 with a layout constraint instead (``with_layout_constraint``, which
+    ``jax.export`` refuses), 1.78–1.95 with these buffers.
     """
     @custom_vmap
     def mapped(x):

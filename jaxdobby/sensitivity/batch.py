@@ -194,9 +194,12 @@ CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False,
   insertion by region analysis (fewer copies of the buffers of nested loops). With the batch's
   lanes last (:func:`jaxdobby.periodic.steady._solve`) the passes' loops run over contiguous
   lanes: 256 samples of the default design on one pinned core (AMD EPYC with AVX-512,
-  2026-12-07, best of 5): 2.28 ms per sample without either, 2.08 with the first, 2.11 with
-  the second, 1.77 with both (the lanes-first program of before: 2.33 without, 2.31 with
-  512-bit vectors); metrics equal to 3e-12 relative.
+  2026-12-07, best of 5, the arm's terms then laid out by a layout constraint, the effect of
+  :func:`jaxdobby.periodic.steady._lane_by_lane` now): 2.28 ms per sample without either,
+  2.08 with the first, 2.11 with the second, 1.77 with both (the lanes-first program of
+  before: 2.33 without, 2.31 with 512-bit vectors); metrics equal to 3e-12 relative. Shipped
+  executables are compiled for AVX2, so the chunk also ships an AVX-512 variant
+  (:data:`jaxdobby.programs.WIDE_ISA`).
 
 The numbers are float64 either way (only the generated loops differ, so round-off may). A
 jaxlib without one of the options compiles without any."""
