@@ -173,9 +173,10 @@ def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTa
     ct = jax.vmap(chain_terms, in_axes=(None, 0, None, None))(
         ds, jax.tree.map(lambda a: a.reshape((-1,) + lanes), frame), zero, zero)
     # kept in memory (a conditional XLA must materialise: without it the chain's terms are
-    # recomputed in each of their consumers, once per entry of the k × k stiffness tables)
+    # recomputed in each of their consumers, once per entry of the k × k stiffness tables);
+    # its key is a run-time value that is ≥ 0 whatever the period, even NaN
     ct = stored(jax.tree.map(lambda a: a.reshape(shape + a.shape[1:]), ct),
-                jnp.ravel(period)[0])
+                jnp.isfinite(jnp.ravel(period)[0]).astype(int))
     link = ct.grad_body * per_node(ct.phi)  # link-11 force on the arm, body frame [N]
     link_x, link_y = (jnp.take(link, i, axis=len(shape)) for i in (0, 1))
     g0 = arm.gravity
