@@ -48,8 +48,9 @@ Intel Xeon; ``jaxdobby optimize``'s were compiled on an AMD EPYC whose AVX2 leve
 variant). The Sobol study's chunk also ships compiled under :data:`WIDE_ISA` (AVX-512) where
 the shipping CPU has it, and a CPU that fits several variants loads the one of the most
 features (:func:`_load_first_fitting`). Elsewhere, or with
-``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as before. Python's :func:`jaxdobby.simulate.simulate` loads the run's executable too (its
-result's structure ships beside it, ``*.structure``: rebuilding it would mean tracing the run).
+``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as before. Python's
+:func:`jaxdobby.simulate.simulate` loads the run's executable too (its result's structure
+ships beside it, ``*.structure``: rebuilding it would mean tracing the run).
 Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate`` with an
 empty cache takes 1.8 s with them, 4.3 s compiling (on the Intel Xeon of 2026-12-05, 3.2 s and
 8.1 s).
@@ -155,18 +156,22 @@ _X86_64_V3 = frozenset({"sse4_2", "popcnt", "avx", "avx2", "bmi1", "bmi2", "f16c
 ``abm``: LZCNT)."""
 
 
+def _cpu_flags() -> frozenset[str]:
+    """This CPU's flags (``/proc/cpuinfo``; empty where there is none)."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            return frozenset(next((line.split(":", 1)[1].split() for line in f
+                                   if line.startswith("flags")), []))
+    except OSError:
+        return frozenset()
+
+
 @cache
 def _cpu_runs_shipped() -> bool:
     """Linux on an x86-64 CPU with every flag of :data:`_X86_64_V3`."""
     if not sys.platform.startswith("linux") or platform.machine() not in ("x86_64", "AMD64"):
         return False
-    try:
-        with open("/proc/cpuinfo") as f:
-            flags = next((line.split(":", 1)[1].split() for line in f
-                          if line.startswith("flags")), [])
-    except OSError:
-        return False
-    return _X86_64_V3 <= set(flags)
+    return _X86_64_V3 <= _cpu_flags()
 
 
 def executables_usable() -> bool:
@@ -350,17 +355,17 @@ def _load_first_fitting(key: str, devices: Sequence | None):
     return None
 
 
-def isa_level(features: frozenset[str]) -> str:
-    """The instruction-set cap an executable of these compiled features was built under:
-    ``AVX512`` where it may use AVX-512, else :data:`EXECUTABLE_ISA`."""
-    return "AVX512" if "avx512f" in features else EXECUTABLE_ISA
-
-
 WIDE_ISA = "AVX512"
 """The second instruction-set cap of the Sobol study's chunk executable, shipped beside the
 :data:`EXECUTABLE_ISA` one where the shipping CPU has it: the chunk's loops run over the
 batch's lanes and gain from 512-bit vectors (`jaxdobby sobol`, N = 1024, on 2 cores with
 AVX-512, 2026-12-07: 1075 samples/s compiled here against 864 with the AVX2 executable)."""
+
+
+def isa_level(features: frozenset[str]) -> str:
+    """The instruction-set cap an executable of these compiled features was built under:
+    :data:`WIDE_ISA` where it may use AVX-512, else :data:`EXECUTABLE_ISA`."""
+    return WIDE_ISA if "avx512f" in features else EXECUTABLE_ISA
 
 
 def shipped_executables(keys: Sequence[str | None], devices: Sequence | None = None) -> list:
@@ -590,14 +595,7 @@ def main() -> None:
         path.unlink()
     stored_report(Setup(), RunOptions(), directory=SHIPPED, ship=SHIPPED)
     write_structure(SHIPPED, Setup(), RunOptions())  # what Python's simulate() rebuilds
-    import dataclasses
-
-    from .sensitivity.batch import chunk_function
-    from .sensitivity.command import default_chunk, default_study_model
-
-    row, stored, dim = default_study_model()
-    chunk_function(row, default_chunk(SHIPPED_DEVICES), dim, jax.devices()[:SHIPPED_DEVICES],
-                   dataclasses.replace(stored, directory=SHIPPED, ship=SHIPPED))
+    _ship_chunk(SHIPPED, SHIPPED_DEVICES)
     from .optimize.command import ship_programs
 
     ship_programs(SHIPPED)  # jaxdobby optimize's: values, the scan of starts, the gradient
@@ -629,16 +627,6 @@ def main() -> None:
         _ship_in_fresh_process(WIDE_ISA, WIDE_ISA, SHIPPED_DEVICES)
 
 
-def _cpu_flags() -> frozenset[str]:
-    """This CPU's flags (``/proc/cpuinfo``; empty where there is none)."""
-    try:
-        text = Path("/proc/cpuinfo").read_text()
-    except OSError:
-        return frozenset()
-    line = next((ln for ln in text.splitlines() if ln.startswith("flags")), "")
-    return frozenset(line.partition(":")[2].split())
-
-
 def _ship_in_fresh_process(stage: str, isa: str, devices: int) -> None:
     """Run ``python -m jaxdobby.programs`` again as ``stage``, in a process whose XLA is set
     up as the shipped executables need it (XLA reads its flags once, when JAX starts its
@@ -650,18 +638,23 @@ def _ship_in_fresh_process(stage: str, isa: str, devices: int) -> None:
     os.execve(sys.executable, [sys.executable, "-m", "jaxdobby.programs"], env)
 
 
-def _ship_wide_chunk(devices: int) -> None:
-    """The Sobol study's chunk executable compiled under :data:`WIDE_ISA`, added as a variant
-    of its key (an unchanged variant keeps its old bytes)."""
+def _ship_chunk(directory: Path, devices: int) -> None:
+    """The default Sobol study's chunk program traced and compiled into ``directory``."""
     import dataclasses
 
     from .sensitivity.batch import chunk_function
     from .sensitivity.command import default_chunk, default_study_model
 
     row, stored, dim = default_study_model()
+    chunk_function(row, default_chunk(devices), dim, jax.devices()[:devices],
+                   dataclasses.replace(stored, directory=directory, ship=directory))
+
+
+def _ship_wide_chunk(devices: int) -> None:
+    """The Sobol study's chunk executable compiled under :data:`WIDE_ISA`, added as a variant
+    of its key (an unchanged variant keeps its old bytes)."""
     with tempfile.TemporaryDirectory() as tmp:
-        chunk_function(row, default_chunk(devices), dim, jax.devices()[:devices],
-                       dataclasses.replace(stored, directory=Path(tmp), ship=Path(tmp)))
+        _ship_chunk(Path(tmp), devices)
         for path in Path(tmp).glob("*.xlaexe"):
             if isa_level(variant_features(path)) != WIDE_ISA:
                 continue  # this jaxlib compiled no AVX-512 code: nothing to add

@@ -186,7 +186,8 @@ def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTa
             n_x * n_y, n_y**2)
     stiffness = sum(per_node(c, 2) * arm.stiffness[i] for i, c in enumerate(coef))
     force = (per_node(omega**2) * arm.centrifugal - per_node(alpha) * arm.euler
-             + per_node(field_x) * arm.translation[:, 0] + per_node(field_y) * arm.translation[:, 1])
+             + per_node(field_x) * arm.translation[:, 0]
+             + per_node(field_y) * arm.translation[:, 1])
     return StageTables(frame=frame, stiffness=stiffness, force=force, height=ct.height,
                        velocity=ct.slope * ct.beta_rate,
                        acceleration=ct.slope * ct.h_beta + ct.curvature * ct.beta_rate**2,
