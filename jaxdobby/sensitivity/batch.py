@@ -178,6 +178,18 @@ def chunk_key(stored: StoredModel, exported, share, devices: Sequence[jax.Device
     return executable_key(f"{stored.name}-chunk", exported, [share], setting)
 
 
+DEFAULT_CHUNK = 256
+"""Default rows per chunk (the command line rounds it up to a multiple of the device count).
+
+On a CPU the dobby's batch evaluator holds ~0.56 MB per sample while a chunk runs (the rigid
+motion's tables at the 1296 collocation nodes and the steps' inverted Newton matrices, each
+sample's own), so a chunk outgrows the caches and the temporary buffer XLA allocates for each
+run grows with it (145 MB for 256 samples on one device). Measured (2-core AMD EPYC,
+2026-12-07, ``benchmarks/sobol_throughput.py --chunk C``, one process of two devices: C/2 samples
+per device): 1048, 1150 and 947 samples/s for C = 128, 256 and 512; one device, one pinned
+core: 1.69, 1.64, 1.79 and 2.26 ms per sample with 64, 128, 256 and 512 samples per device."""
+
+
 CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False,
                         "xla_cpu_prefer_vector_width": 512,
                         "xla_cpu_copy_insertion_use_region_analysis": True}
@@ -235,7 +247,7 @@ def _check_outputs(out_info, chunk_size: int) -> None:
             raise TypeError(f"metric {k!r} must be a float; got {v.dtype}")
 
 
-def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = 512,
+def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = DEFAULT_CHUNK,
              devices: int | Sequence[jax.Device] | None = None, store: ChunkStore | None = None,
              progress: Progress | None = None, stored: StoredModel | None = None) -> Evaluation:
     """Evaluate ``model`` on every row of ``samples`` (see the module docstring).

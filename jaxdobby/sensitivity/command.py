@@ -34,7 +34,7 @@ import jax
 import numpy as np
 
 from .analysis import SobolResult, analyze, check_settings
-from .batch import (Evaluation, Progress, StoredModel, check_chunk_size, evaluate,
+from .batch import (DEFAULT_CHUNK, Evaluation, Progress, StoredModel, check_chunk_size, evaluate,
                     local_devices)
 from .dobby import DOBBY
 from .failures import POLICIES, FailedSamplesError
@@ -48,10 +48,6 @@ from .store import ChunkStore, atomic_write, samples_digest, write_json
 MODELS: dict[str, ModelSpec] = {"dobby": DOBBY, "ishigami": ISHIGAMI, "dobby-stress": DOBBY_STRESS}
 """Models ``--model`` can name (the dobby by default; Ishigami for checking the pipeline;
 ``dobby-stress`` adds the arm's peak stress and fatigue factor, :mod:`.stress`)."""
-
-DEFAULT_CHUNK = 512
-"""Default rows per chunk (rounded up to a multiple of the device count)."""
-
 
 @dataclasses.dataclass(frozen=True)
 class SobolConfig:
@@ -67,7 +63,8 @@ class SobolConfig:
         resume: continue the run in ``out`` from its finished chunks.
         devices: local devices to use (None: all).
         json: the CLI prints JSON instead of a table.
-        chunk_size: rows per chunk (None: 512 rounded up to a multiple of the devices).
+        chunk_size: rows per chunk (None: :data:`~jaxdobby.sensitivity.batch.DEFAULT_CHUNK`
+            rounded up to a multiple of the devices).
         model: name of the model in :data:`MODELS`.
         steps: collocation steps per cycle of the dobby's models (None: their default, 432);
             fewer run faster and less accurately (:data:`STEPS_HELP`).
