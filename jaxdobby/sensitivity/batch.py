@@ -186,8 +186,9 @@ motion's tables at the 1296 collocation nodes and the steps' inverted Newton mat
 sample's own), so a chunk outgrows the caches and the temporary buffer XLA allocates for each
 run grows with it (145 MB for 256 samples on one device). Measured (2-core AMD EPYC,
 2026-12-07, ``benchmarks/sobol_throughput.py --chunk C``, one process of two devices: C/2 samples
-per device): 1048, 1150 and 947 samples/s for C = 128, 256 and 512; one device, one pinned
-core: 1.69, 1.64, 1.79 and 2.26 ms per sample with 64, 128, 256 and 512 samples per device."""
+per device): 1102 and 947 samples/s for C = 256 and 512 run one after the other, 1048 and 1150
+for C = 128 and 256 in another pair; one device, one pinned core: 1.69, 1.64, 1.79 and 2.26 ms
+per sample with 64, 128, 256 and 512 samples per device."""
 
 
 CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False,
