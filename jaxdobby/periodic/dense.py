@@ -32,11 +32,11 @@ from jax import Array
 from ..dobby import DobbyModel
 from ..outputs import ArmMotion
 from ..steady_state import ShootingResult, attach_root_derivative, relative_residual
-from .chain import Downstream, chain_reachable, chain_terms, downstream
+from .chain import Downstream, chain_reachable, chain_terms
 from .collocation import MATRIX2, NODES, dense_weights
-from .cycle import ArmTerms, RigidArm, StageTables, arm_terms, node_phases, rigid_arm, tables_at
+from .cycle import ArmTerms, RigidArm, StageTables, node_phases, rigid_arm, tables_at
 from .linear import linearise
-from .steady import Cycle
+from .steady import Cycle, terms_of
 from .stepper import PassResult, cycle_pass
 
 PER_STEP = 4
@@ -229,14 +229,15 @@ def steady_cycle(model: DobbyModel, steps: int, *, tolerance=1e-6, per_step: int
     # (one copy of the autodiff kinematics in the program); the end t = T is the phase 0 of the
     # periodic motion (the opposing warp law turns there)
     n_out = steps * per_step
-    arm, ds, period = arm_terms(model), downstream(model), jnp.asarray(model.period)
+    terms = terms_of(model)
+    arm, ds, period = terms.arm, terms.downstream, terms.period
     phases = jnp.concatenate([node_phases(steps).reshape(-1),
                               (jnp.arange(n_out + 1) % n_out) / n_out])
     rigid = rigid_arm(model, phases)
     every = tables_at(arm, ds, rigid, period)
     tables = jax.tree.map(lambda a: a[:3 * steps].reshape((steps, 3) + a.shape[1:]), every)
     out_tables, out_rigid = (jax.tree.map(lambda a: a[3 * steps:], x) for x in (every, rigid))
-    cycle = Cycle(arm, ds, tables, period)
+    cycle = terms.cycle(tables)
 
     def iterate(c):
         lin = linearise(c.arm, c.downstream, c.tables, c.period)

@@ -104,6 +104,15 @@ class Terms(eqx.Module):
     downstream: Downstream
     period: Array
 
+    def cycle(self, tables: StageTables | None) -> Cycle:
+        """The :class:`Cycle` of these terms on ``tables`` (None: without its tables)."""
+        return Cycle(self.arm, self.downstream, tables, self.period)
+
+
+def terms_of(model: DobbyModel) -> Terms:
+    """:class:`Terms` of an assembled (two-way coupled) ``model``."""
+    return Terms(arm_terms(model), downstream(model), jnp.asarray(model.period))
+
 
 def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
     """Build the coupled model of ``setup`` (finite elements, modal reduction) and tabulate its
@@ -127,7 +136,7 @@ def model_terms(setup: Setup, *, frequencies: bool = False):
     def one(d):
         s = eqx.combine(d, static)
         model = build_model(s.machine, s.operating)
-        terms = Terms(arm_terms(model), downstream(model), jnp.asarray(model.period))
+        terms = terms_of(model)
         if not frequencies:
             return terms, None
         from ..validity import phase_frequencies
@@ -184,9 +193,9 @@ def rigid_motion(setup: Setup, steps: int = DEFAULT_STEPS) -> RigidArm:
 
 def cycle_of(model: DobbyModel, steps: int = DEFAULT_STEPS) -> Cycle:
     """:class:`Cycle` of an assembled (two-way coupled) ``model`` on ``steps`` steps per cycle."""
-    arm, ds = arm_terms(model), downstream(model)
-    tables = tables_at(arm, ds, rigid_arm(model, node_phases(steps)), model.period)
-    return Cycle(arm, ds, tables, jnp.asarray(model.period))
+    terms = terms_of(model)
+    return terms.cycle(tables_at(terms.arm, terms.downstream,
+                                 rigid_arm(model, node_phases(steps)), terms.period))
 
 
 def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance: float = 1e-5,
@@ -296,7 +305,7 @@ def batch_linearise(terms: Terms, tables: StageTables):
     i_phi = jnp.moveaxis(jnp.eye(lin.monodromy.shape[0])[..., None] - lin.monodromy, -1, 0)
     # one matrix at a time (a batched LAPACK call can deadlock a 2-core CPU: see model_terms)
     chord_matrix = jnp.moveaxis(jax.lax.map(jnp.linalg.inv, i_phi), 0, -1)
-    rest = Cycle(terms.arm, terms.downstream, None, terms.period)
+    rest = terms.cycle(None)
     return rest, lin, chord_matrix, gl.matmul(chord_matrix, lin.rest_response)
 
 
@@ -335,8 +344,7 @@ def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
 
     @custom_vmap
     def solve(terms, rigid):
-        cycle = Cycle(terms.arm, terms.downstream,
-                      tables_at(terms.arm, terms.downstream, rigid, terms.period), terms.period)
+        cycle = terms.cycle(tables_at(terms.arm, terms.downstream, rigid, terms.period))
         lin = linearise(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
         chord_matrix = jnp.linalg.inv(jnp.eye(lin.monodromy.shape[0]) - lin.monodromy)
         x = chord_matrix @ lin.rest_response
