@@ -142,6 +142,16 @@ def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str 
         if machine.warp_law != "restoring":
             raise ValueError("a lift plan needs warp_law = 'restoring' (the 'opposing' law is "
                              f"defined for plain weave only), got {machine.warp_law!r}")
+    return DobbyModel(machine=machine, operating=operating, lift_plan=lift_plan,
+                      **machine_parts(machine, basis))
+
+
+def machine_parts(machine: Machine, basis: Array | str | None = None) -> dict:
+    """What :func:`build_model` assembles from the machine alone (the operating point only
+    rides along): the fields ``chain``, ``body``, ``ring_direction_ref``, ``link_joint``,
+    ``stroke``, ``mid_level`` and ``crank_start`` of a :class:`DobbyModel`, by name. A batch
+    whose rows share a machine at different operating points builds them once per machine
+    (:func:`jaxdobby.periodic.steady.model_terms`)."""
     chain = machine.chain
     (phi_bottom, _), (theta_bottom, theta_top) = dead_centres(chain)
     n_ref = _reference_direction(chain)
@@ -152,10 +162,9 @@ def build_model(machine: Machine, operating: OperatingPoint, basis: Array | str 
                          damping_ratio=machine.damping_ratio, basis=basis)
     y_bottom = heald_frame_height_from_arm(chain, theta_bottom)
     y_top = heald_frame_height_from_arm(chain, theta_top)
-    return DobbyModel(machine=machine, operating=operating, chain=chain, body=body,
-                      ring_direction_ref=n_ref, link_joint=chain.arm.point(s_link),
-                      stroke=y_top - y_bottom, mid_level=0.5 * (y_top + y_bottom),
-                      crank_start=phi_bottom, lift_plan=lift_plan)
+    return dict(chain=chain, body=body, ring_direction_ref=n_ref,
+                link_joint=chain.arm.point(s_link), stroke=y_top - y_bottom,
+                mid_level=0.5 * (y_top + y_bottom), crank_start=phi_bottom)
 
 
 # -- the rigid mechanism at time t -------------------------------------------------------------

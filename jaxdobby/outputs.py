@@ -177,6 +177,12 @@ def coupled_frequencies(model: DobbyModel, t=None) -> Array:
 
 @eqx.filter_jit  # t an array (or None), so that a new time does not compile a new program
 def _coupled_frequencies(model: DobbyModel, t) -> Array:
+    return frequencies_of(*coupled_matrices(model, t))
+
+
+def coupled_matrices(model: DobbyModel, t=None) -> tuple[Array, Array]:
+    """(mass, stiffness), each (k, k): the linearisation of :func:`coupled_frequencies` at time
+    ``t`` (no LAPACK call: vmappable over times or samples without batching one)."""
     if model.lift_plan is not None and t is None:
         # a configuration's property: the same at mid-stroke whatever the lift plan
         model = dataclasses.replace(model, lift_plan=None)
@@ -194,6 +200,12 @@ def _coupled_frequencies(model: DobbyModel, t) -> Array:
     if model.machine.warp_law == "restoring":
         warp_rate = model.operating.warp_force / (0.5 * model.stroke)
         stiffness = stiffness + warp_rate * jnp.outer(g_q[1], g_q[1])
+    return mass, stiffness
+
+
+def frequencies_of(mass: Array, stiffness: Array) -> Array:
+    """Natural frequencies [Hz] of the undamped system (mass, stiffness), ascending (k,):
+    the eigenvalues of L⁻¹KL⁻ᵀ, M = LLᵀ (LAPACK: Cholesky, triangular solves, ``eigvalsh``)."""
     chol = jnp.linalg.cholesky(mass)
     a = jax.scipy.linalg.solve_triangular(
         chol, jax.scipy.linalg.solve_triangular(chol, stiffness, lower=True).T, lower=True)

@@ -232,21 +232,40 @@ def test_vmap_equals_single_samples_and_failures_are_flagged(monkeypatch):
     3000 r/min (frame-on-arm mode ~62 Hz by the √t scaling of the 107 Hz one, the cycle at
     25 Hz; its solve does not give a finite periodic cycle): it is flagged (ok False), nothing
     raises, and the other lanes are unaffected. Lanes are independent, but XLA may order the
-    sums of batched contractions differently (measured 6e-12 relative), so 1e-10."""
+    sums of batched contractions differently (measured 6e-12 relative), so 1e-10.
+
+    Three more rows share the machine (stroke and thickness) of the first three at other
+    speeds and warp forces, as the rows of a Saltelli design do: the batch builds the machine's
+    part of the model once per distinct machine (jaxdobby.periodic.steady.model_terms), 9
+    times for these 12 rows (counted at run time), the per-sample loop 12 times, and every lane
+    still gets what it gets alone."""
     from jaxdobby.periodic import steady
 
     monkeypatch.setattr(steady, "ROUND_WIDTH", 3)
+    builds = []
+    parts = steady.machine_parts
+
+    def counted(machine):
+        jax.debug.callback(lambda: builds.append(1))
+        return parts(machine)
+
+    monkeypatch.setattr(steady, "machine_parts", counted)
     rng = np.random.default_rng(1)
     lo = np.array([400 * RPM, 345.0, 0.080, 0.006])
     hi = np.array([1200 * RPM, 1035.0, 0.140, 0.008])
     far_out = np.array([[3000 * RPM, 690.0, 0.140, 0.002]])
-    rows = jnp.asarray(np.concatenate([lo + (hi - lo) * rng.random((8, 4)), far_out]))
+    random = lo + (hi - lo) * rng.random((8, 4))
+    shared = np.concatenate([(lo + (hi - lo) * rng.random((3, 4)))[:, :2], random[:3, 2:]], 1)
+    rows = jnp.asarray(np.concatenate([random, shared, far_out]))
 
     def one(r):
         return steady_state_metrics(setup_at(r), steps=144)
 
-    batched = jax.jit(jax.vmap(one))(rows)
-    alone = jax.jit(lambda rs: jax.lax.map(one, rs))(rows)
+    batched = jax.block_until_ready(jax.jit(jax.vmap(one))(rows))
+    assert len(builds) == 9
+    builds.clear()
+    alone = jax.block_until_ready(jax.jit(lambda rs: jax.lax.map(one, rs))(rows))
+    assert len(builds) == 12
     cycles = np.asarray(batched["cycles"])
     assert len(set(cycles.tolist())) >= 3, cycles  # lanes finish in different rounds
     assert cycles.tolist() == np.asarray(alone["cycles"]).tolist()

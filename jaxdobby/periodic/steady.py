@@ -54,7 +54,8 @@ from jax import Array
 from jax.custom_batching import custom_vmap
 
 from .._x64 import require_x64
-from ..dobby import DobbyModel, build_model
+from ..dobby import DobbyModel, build_model, machine_parts
+from ..eigen import MAX_MODES
 from ..kinematics import dead_centres
 from ..parameters import Setup
 from ..steady_state import relative_residual
@@ -122,34 +123,57 @@ def prepare(setup: Setup, steps: int = DEFAULT_STEPS) -> Cycle:
 
 def model_terms(setup: Setup, *, frequencies: bool = False):
     """(:class:`Terms`, coupled natural frequencies [Hz] or None) of ``setup``; vmapped, one
-    sample at a time (:func:`_lane_by_lane`, as ``jax.custom_batching.sequential_vmap``).
+    sample at a time (:func:`_lane_by_lane`, as ``jax.custom_batching.sequential_vmap``), the
+    arm's finite elements and modes once per distinct machine of the batch.
 
     Here are the LAPACK calls (Cholesky, ``eigh``, LU of the 31-DOF arm), and jaxlib spreads a
     batched LAPACK call over the CPU's intra-op threads and blocks one of them until the
     pieces finish, so two such calls running side by side on a 2-core CPU wait on each other
-    for ever (seen with chunks of 256 samples). One matrix at a time never splits. It is a small
-    part of a sample's cost; the tables and the cycle passes, which are all of the rest, stay
-    vectorised over the batch. ``frequencies``: see :func:`steady_state_metrics`.
+    for ever (seen with chunks of 256 samples). One matrix at a time never splits. The tables
+    and the cycle passes, all of the rest, stay vectorised over the batch.
+
+    The machine's part of the model (:func:`jaxdobby.dobby.machine_parts`: the finite
+    elements, the modal reduction, the linkage's dead centres) does not depend on the operating
+    point, and a Saltelli design repeats machines: each base sample's 2D + 2 rows hold 4
+    distinct machines when two of its D = 4 parameters are the machine's (the default
+    problem: stroke and thickness), 2 when one is. So a batch builds it once per distinct
+    machine among its lanes (``unique`` of :func:`_lane_by_lane`) and every lane then adds its
+    operating point (the chain's constants, the cycle time, the frequencies: these depend on
+    the warp force). ``frequencies``: see :func:`steady_state_metrics`.
     """
     dynamic, static = eqx.partition(setup, eqx.is_array)
 
-    def one(d):
-        s = eqx.combine(d, static)
-        model = build_model(s.machine, s.operating)
+    def parts(machine):
+        return machine_parts(eqx.combine(machine, static.machine))
+
+    from ..validity import frequencies_hz, phase_matrices
+
+    # the frequencies' eigenvalue problems of a few modes run vectorised over the whole batch
+    # after the loop (jaxdobby.eigen); those of more modes, LAPACK's, inside it
+    vectorised = setup.machine.n_modes <= MAX_MODES
+
+    def one(machine, operating, built):
+        model = DobbyModel(machine=eqx.combine(machine, static.machine),
+                           operating=eqx.combine(operating, static.operating), **built)
         terms = terms_of(model)
         if not frequencies:
             return terms, None
-        from ..validity import phase_frequencies
+        matrices = phase_matrices(model)
+        return terms, matrices if vectorised else frequencies_hz(*matrices)
 
-        return terms, phase_frequencies(model)
+    built = _lane_by_lane(parts, unique=True)(dynamic.machine)
+    terms, extra = _lane_by_lane(one)(dynamic.machine, dynamic.operating, built)
+    if frequencies and vectorised:
+        extra = frequencies_hz(*extra)
+    return terms, extra
 
-    return _lane_by_lane(one)(dynamic)
 
-
-def _lane_by_lane(f):
+def _lane_by_lane(f, unique: bool = False):
     """``f`` vmapped one sample at a time (as ``jax.custom_batching.sequential_vmap``), its
     results written with the lanes last into buffers (..., B) and handed on as their
-    transposes (B, ...), as a batching rule must.
+    transposes (B, ...), as a batching rule must. ``unique``: ``f`` runs once per distinct
+    lane (lanes whose batched inputs are equal bit for bit share its result; ``f`` must be a
+    function of its inputs alone), in a loop of as many iterations as there are.
 
     :func:`batch_terms` transposes them back: XLA cancels the two transposes, and the passes
     read the buffers as written, lanes last and contiguous (the optimised program's layouts
@@ -161,25 +185,50 @@ def _lane_by_lane(f):
     ``jax.export`` refuses), 1.78–1.95 with these buffers.
     """
     @custom_vmap
-    def mapped(x):
-        return f(x)
+    def mapped(*x):
+        return f(*x)
 
     @mapped.def_vmap
-    def rule(size, batched, x):
+    def rule(size, batched, *x):
+        batched = tuple(batched)
+        if unique:
+            first = _first_equal_lane(x, batched, size)
         x = jax.tree.map(lambda a, b: a if b else jnp.broadcast_to(a, (size,) + jnp.shape(a)),
-                         x, batched[0])
-        shapes = jax.eval_shape(f, jax.tree.map(lambda a: a[0], x))
+                         x, batched)
+        shapes = jax.eval_shape(f, *jax.tree.map(lambda a: a[0], x))
         buffers = jax.tree.map(lambda a: jnp.zeros(a.shape + (size,), a.dtype), shapes)
 
-        def one_lane(i, buffers):
-            out = f(jax.tree.map(lambda a: a[i], x))
+        def lane(i, buffers):
+            out = f(*jax.tree.map(lambda a: a[i], x))
             return jax.tree.map(lambda b, o: b.at[..., i].set(o), buffers, out)
 
-        buffers = jax.lax.fori_loop(0, size, one_lane, buffers)
+        if unique:
+            distinct = first == jnp.arange(size)
+            todo = jnp.argsort(jnp.where(distinct, 0, 1), stable=True)
+            buffers = jax.lax.fori_loop(0, jnp.sum(distinct),
+                                        lambda j, b: lane(todo[j], b), buffers)
+            buffers = jax.tree.map(lambda b: b[..., first], buffers)
+        else:
+            buffers = jax.lax.fori_loop(0, size, lane, buffers)
         out = jax.tree.map(lambda b: jnp.moveaxis(b, -1, 0), buffers)
         return out, jax.tree.map(lambda _: True, out)
 
     return mapped
+
+
+def _first_equal_lane(x, batched, size: int) -> Array:
+    """For each of ``size`` lanes, the first lane whose batched leaves of ``x`` (lanes on axis
+    0; ``batched``: pytree of bools) are all equal to its own, bit for bit (NaNs included),
+    (size,) int; lanes without a batched leaf are all equal."""
+    same = jnp.ones((size, size), bool)
+    for a, b in zip(jax.tree.leaves(x), jax.tree.leaves(batched)):
+        if not b:
+            continue
+        a = jnp.reshape(a, (size, -1))
+        if jnp.issubdtype(a.dtype, jnp.floating):
+            a = jax.lax.bitcast_convert_type(a, jnp.dtype(f"int{a.dtype.itemsize * 8}"))
+        same = same & jnp.all(a[:, None, :] == a[None, :, :], axis=-1)
+    return jnp.argmax(same, axis=1)
 
 
 def rigid_motion(setup: Setup, steps: int = DEFAULT_STEPS) -> RigidArm:
@@ -263,13 +312,14 @@ def _start(x: Array) -> _Lanes:
 
 
 def _chord_pass(cycle: Cycle, solvers, chord_matrix: Array, lanes: _Lanes, tables=None,
-                steps: int | None = None) -> _Lanes:
+                steps: int | None = None, outputs: bool = True) -> _Lanes:
     """One chord cycle of one sample: integrate from x, record, step x ← x + (I − Φ)⁻¹(F(x) − x).
     ``tables``, ``solvers``, ``steps``: as :func:`cycle_pass`'s; ``tables`` None:
-    ``cycle.tables``."""
+    ``cycle.tables``. ``outputs`` False: a cycle whose extremes and reachability a later one
+    replaces (NaN extremes, reachable)."""
     x = lanes.x
     run = cycle_pass(cycle.arm, cycle.downstream, cycle.tables if tables is None else tables,
-                     cycle.period, x, solvers=solvers, outputs=True, steps=steps)
+                     cycle.period, x, solvers=solvers, outputs=outputs, steps=steps)
     return _Lanes(lanes.passes + 1, x + gl.matmul(chord_matrix, run.end - x),
                   relative_residual(x, run.end), run.maxima, run.minima, run.reachable)
 
@@ -328,8 +378,10 @@ def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
       the operand's layout, so every step then read its tables strided (a pass 0.45 ms). A
       linkage sampled with the rest (the rigid motion differs per lane) builds them lane by
       lane and transposes them.
-    * the first :data:`FULL_CYCLES` cycles run for every lane at once, the rest in rounds: a
-      vmapped while loop would run every lane until the slowest has converged (on 256 samples
+    * the first :data:`FULL_CYCLES` cycles run for every lane at once (those before the last
+      of them without the extremes, which a later cycle's always replace: 0.88 against 0.85 ms
+      per sample of the default design, 128 samples on one pinned core, 2026-12-07), the rest
+      in rounds: a vmapped while loop would run every lane until the slowest has converged (on 256 samples
       of the default box the lanes need 2 to 4 cycles); here each round gathers W of the lanes
       still pending (the first W; W = :data:`ROUND_WIDTH`) with their tables and solvers and
       integrates one cycle for them, until none is pending. Each lane goes through the same
@@ -358,16 +410,18 @@ def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
         rest, lin, chord_matrix, x = batch_linearise(terms, tables)
         width = min(size, ROUND_WIDTH)
 
-        def full_cycle(lanes):
-            return _chord_pass(rest, lin.solvers, chord_matrix, lanes, tables=tables)
+        def full_cycle(lanes, outputs):
+            return _chord_pass(rest, lin.solvers, chord_matrix, lanes, tables=tables,
+                               outputs=outputs)
 
         # a Python loop, not a fori_loop: a pass (a scan) inside another loop ran 8-10 % slower
         # in all (2026-12-07, 256 samples, one pinned core: 2.49 against 2.28 ms per sample;
         # with the compile options of jaxdobby.sensitivity.batch, 2.31 against 1.77), for a
         # second copy of the pass in the program (compiled 2-3 s longer)
         lanes = _start(x)
-        for _ in range(min(FULL_CYCLES, max_passes)):
-            lanes = full_cycle(lanes)
+        full = min(FULL_CYCLES, max_passes)
+        for n in range(full):
+            lanes = full_cycle(lanes, outputs=n == full - 1)
 
         def one_round(lanes):
             todo = pending(lanes)
