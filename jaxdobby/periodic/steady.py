@@ -381,11 +381,12 @@ def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
     * the first :data:`FULL_CYCLES` cycles run for every lane at once (those before the last
       of them without the extremes, which a later cycle's always replace: 0.88 against 0.85 ms
       per sample of the default design, 128 samples on one pinned core, 2026-12-07), the rest
-      in rounds: a vmapped while loop would run every lane until the slowest has converged (on 256 samples
-      of the default box the lanes need 2 to 4 cycles); here each round gathers W of the lanes
-      still pending (the first W; W = :data:`ROUND_WIDTH`) with their tables and solvers and
-      integrates one cycle for them, until none is pending. Each lane goes through the same
-      cycles as alone; the batch integrates about the cycles its lanes need.
+      in rounds: a vmapped while loop would run every lane until the slowest has converged
+      (on 256 samples of the default box the lanes need 2 to 4 cycles); here each round
+      gathers W of the lanes still pending (the first W; W = :data:`ROUND_WIDTH`) with their
+      tables and solvers and integrates one cycle for them, until none is pending. Each lane
+      goes through the same cycles as alone; the batch integrates about the cycles its lanes
+      need.
     """
     def pending(lanes):
         return (lanes.passes < min(FULL_CYCLES, max_passes)) | ((lanes.passes < max_passes)
