@@ -37,26 +37,27 @@ def generalized_eigvalsh_small(mass: Array, stiffness: Array) -> Array:
     """Eigenvalues of stiffness · v = λ mass · v, ascending, for symmetric positive-definite
     ``mass`` and symmetric ``stiffness`` of shape (..., k, k) with k ≤ :data:`MAX_MODES`:
     shape (..., k). Batch axes in front, any number."""
-    k = mass.shape[-1]
-    m = [[mass[..., i, j] for j in range(k)] for i in range(k)]
-    s = [[stiffness[..., i, j] for j in range(k)] for i in range(k)]
-    chol = _cholesky(m)
-    a = _congruence(chol, s)
-    return eigvalsh_small_entries(a)
+    return _jacobi(_congruence(_cholesky(_entries(mass)), _entries(stiffness)))
 
 
 def eigvalsh_small(a: Array) -> Array:
     """Eigenvalues of the symmetric matrices ``a`` (..., k, k), ascending, (..., k)."""
+    return _jacobi(_entries(a))
+
+
+def _entries(a: Array) -> list[list[Array]]:
+    """The k² entries of the matrices ``a`` (..., k, k), each an array over the batch axes;
+    refuses k > :data:`MAX_MODES` before anything is unrolled."""
     k = a.shape[-1]
-    return eigvalsh_small_entries([[a[..., i, j] for j in range(k)] for i in range(k)])
-
-
-def eigvalsh_small_entries(a: list[list[Array]]) -> Array:
-    """:func:`eigvalsh_small` of a matrix given as its entries (k lists of k arrays; the upper
-    triangle is read)."""
-    k = len(a)
     if k > MAX_MODES:
         raise ValueError(f"eigvalsh_small is for k <= {MAX_MODES}; got k = {k}")
+    return [[a[..., i, j] for j in range(k)] for i in range(k)]
+
+
+def _jacobi(a: list[list[Array]]) -> Array:
+    """Eigenvalues, ascending, of a symmetric matrix given as its entries (the upper triangle
+    is read), by :data:`SWEEPS` cyclic Jacobi sweeps."""
+    k = len(a)
     a = [[a[min(i, j)][max(i, j)] for j in range(k)] for i in range(k)]
     for _ in range(SWEEPS):
         for p, q in itertools.combinations(range(k), 2):
