@@ -309,6 +309,65 @@ def test_a_sampled_linkage_gives_each_lane_its_own_rigid_motion(monkeypatch):
         np.testing.assert_allclose(batched[name], alone[name], rtol=1e-10, err_msg=name)
 
 
+def test_steps_by_speed_integrate_the_most_steps_any_lane_needs(monkeypatch):
+    """``steps="speed"`` (what a Sobol chunk runs): each sample's steps per cycle from its speed
+    (jaxdobby.periodic.steady.STEPS_BY_SPEED), a batch integrating its lanes' most in loops of a
+    run-time length over tables of a fixed size. Held against the scans of a fixed step count
+    (the code every other test checks), on a coarse table (216 and 144 steps, cheaper): a batch
+    of fast rows equals the fixed 144-step batch, a batch with slow rows the fixed 216-step one
+    (to 1e-10, as the lanes against their solves alone above: the same arithmetic, other
+    loops), and the table's thresholds are where it says."""
+    from jaxdobby.periodic import steady
+
+    monkeypatch.setattr(steady, "DEFAULT_STEPS", 216)
+    monkeypatch.setattr(steady, "STEPS_BY_SPEED", ((0.0, 216), (700.0, 144)))
+    slow = [[500 * RPM, 400.0, 0.100, 0.007], [650 * RPM, 900.0, 0.130, 0.0065]]
+    fast = [[900 * RPM, 600.0, 0.090, 0.0075], [1150 * RPM, 1000.0, 0.120, 0.006]]
+
+    def run(steps, rows):
+        return jax.jit(jax.vmap(lambda r: steady_state_metrics(setup_at(r), steps=steps)))(
+            jnp.asarray(rows))
+
+    for rows, fixed in ((fast + fast, 144), (slow + fast, 216)):
+        by_speed, reference = run("speed", rows), run(fixed, rows)
+        assert np.asarray(by_speed["ok"]).all()
+        assert np.asarray(by_speed["cycles"]).tolist() == np.asarray(reference["cycles"]).tolist()
+        for name in METRICS:
+            np.testing.assert_allclose(by_speed[name], reference[name], rtol=1e-10,
+                                       err_msg=f"{name}, {fixed} steps")
+    speeds = jnp.asarray([699.9, 700.0, 1200.0]) * RPM
+    assert steady.steps_for_speed(speeds).tolist() == [216, 144, 144]
+    with pytest.raises(ValueError, match="steps must be a positive integer or 'speed'"):
+        steady_state_metrics(setup_at(jnp.asarray(slow[0])), steps="fast")
+
+
+@pytest.mark.slow
+def test_steps_by_speed_keep_the_accuracy_at_the_slowest_speed_of_each_step_count():
+    """The thresholds of jaxdobby.periodic.steady.STEPS_BY_SPEED: at the slowest speed of each
+    step count below 432 (360 steps from 450 r/min, 288 from 650, 216 from 1000) the 8 corners
+    of warp force × stroke × thickness of the default box are within 3e-5 relative of the
+    adaptive solve (rtol 1e-8) in every metric, as 432 steps are at 400 r/min (measured
+    2026-12-07: 2.5e-5, 2.8e-5, 1.6e-5, the velocity deviation's amplitude each time; 432 steps
+    at 400 r/min 2.3e-5). Above a threshold the error falls with the speed (the arm's modes get
+    more steps per period: 1.7e-5 at 480 r/min with 360 steps, 2.2e-5 at 700 with 288, 1.0e-5 at
+    1100 with 216)."""
+    from jaxdobby.periodic.steady import STEPS_BY_SPEED
+
+    lo, hi = (345.0, 0.080, 0.006), (1035.0, 0.140, 0.008)
+    for rpm, _ in STEPS_BY_SPEED[1:]:
+        rows = np.array([[rpm * RPM] + [hi[i] if b else lo[i] for i, b in enumerate(bits)]
+                         for bits in itertools.product([0, 1], repeat=3)])
+        batched = jax.jit(jax.vmap(lambda r: steady_state_metrics(setup_at(r), steps="speed")))(
+            jnp.asarray(rows))
+        assert bool(jnp.all(batched["ok"]))
+        for i, row in enumerate(rows):
+            s = setup_at(jnp.asarray(row))
+            ref = simulate(s.machine, s.operating, method="adaptive").metrics
+            for name in METRICS:
+                assert float(batched[name][i]) == pytest.approx(float(ref[name]), rel=3e-5), (
+                    rpm, row, name)
+
+
 @pytest.mark.slow
 def test_corners_of_the_default_box_match_the_adaptive_reference():
     """All 16 corners of speed 400–1200 r/min × warp 345–1035 N × stroke 80–140 mm × t 6–8 mm:

@@ -137,13 +137,35 @@ def test_steps_other_than_the_default_key_their_own_stored_program():
     default = stored_model(DOBBY, space).static_key
     assert stored_model(DOBBY, space, None).static_key == default
     assert stored_model(DOBBY, space, 216).static_key != default
-    assert DOBBY.builder(432) is DOBBY.build and DOBBY.builder(None) is DOBBY.build
+    assert DOBBY.builder(None) is DOBBY.build
+    # the default build's steps follow each row's speed: 432 for every row is another build
+    assert DOBBY.builder(432) is not DOBBY.build
+    assert stored_model(DOBBY, space, 432).static_key != default
+
+
+def test_default_study_groups_rows_by_their_steps_per_cycle(small_run):
+    # jaxdobby.periodic.steady.STEPS_BY_SPEED: 432 steps below 450 r/min, 360 below 650, 288
+    # below 1000, 216 from there; a chunk holds rows of one count (padded), and the run says so
+    from jaxdobby.sensitivity.batch import chunk_order
+
+    samples = np.load(small_run.out / "outputs.npz")["samples"]
+    groups = DOBBY.row_groups(small_run.space, samples)
+    speed = samples[:, 0]
+    expected = np.select([speed < 450, speed < 650, speed < 1000], [432, 360, 288], 216)
+    assert groups.tolist() == expected.tolist() and len(set(groups.tolist())) == 4
+    order = chunk_order(groups, 64)
+    assert len(order) % 64 == 0 and sorted(set(order.tolist())) == list(range(len(samples)))
+    for chunk in order.reshape(-1, 64):
+        assert len(set(groups[chunk].tolist())) == 1
+    manifest = json.loads((small_run.out / "manifest.json").read_text())
+    assert manifest["chunk_order"] == "steps per cycle by speed" and "steps" not in manifest
+    assert json.loads((small_run.out / "indices.json").read_text())["run"]["steps"] == "by speed"
 
 
 @pytest.mark.slow  # ~40 s: compiles the batch at 216 steps
 def test_fewer_steps_give_the_default_study_to_the_stated_accuracy(small_run, tmp_path):
     # jaxdobby sobol --steps 216: every metric of these 192 rows within 1e-3 relative of the
-    # default's (432 steps, itself within 3e-5 of the adaptive reference). The --steps help
+    # default's (steps by speed, within 3e-5 of the adaptive reference). The --steps help
     # states 1.3e-3 over the default study's 10 240 rows (the velocity deviation's
     # amplitude; ≤ 1.3e-4 on the others) and 8e-4 at the corners of the box against the
     # adaptive reference (benchmarks/sobol_throughput.py --steps 216 --accuracy)

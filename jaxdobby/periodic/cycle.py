@@ -194,6 +194,9 @@ def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTa
                        link_force=link)
 
 
-def node_phases(steps: int) -> Array:
-    """τ at the collocation nodes of ``steps`` equal steps per cycle, shape (steps, 3)."""
-    return (jnp.arange(steps)[:, None] + jnp.asarray(NODES)[None, :]) / steps
+def node_phases(steps, size: int | None = None) -> Array:
+    """τ at the collocation nodes of ``steps`` equal steps per cycle, shape (steps, 3); with
+    ``size`` (static, ≥ steps), shape (size, 3), ``steps`` then possibly traced: the nodes of
+    the first ``steps`` rows, the rest beyond the cycle's end (tables nobody reads)."""
+    size = steps if size is None else size
+    return (jnp.arange(size)[:, None] + jnp.asarray(NODES)[None, :]) / steps

@@ -191,15 +191,21 @@ def _frozen_step(carry, mass, damp, stiff, forces, h, key):
     return (gl.matmul(psi, phi), gl.matmul(psi, d) + c), solver
 
 
-def linearise(arm: ArmTerms, ds: Downstream, tables: StageTables, period) -> Linearisation:
+def linearise(arm: ArmTerms, ds: Downstream, tables: StageTables, period,
+              steps=None) -> Linearisation:
     """:class:`Linearisation` of one sample's cycle (tables with leading axes (N, 3)).
 
     A batch with its lanes last (as :func:`jaxdobby.periodic.cycle.tables_at` builds its
     tables: ``period`` (B,), every leaf with a trailing lane axis) gives the same with the lanes
     last: the solvers' leaves (N, ..., B), Φ (2k, 2k, B) and d (2k, B).
+
+    ``steps``: None, the cycle is the tables' N steps (a scan, differentiable); else the
+    number of steps of the cycle, a run-time integer ≤ N (the tables' first ``steps`` rows,
+    :func:`jaxdobby.periodic.cycle.node_phases` with a ``size``): a loop of that many steps,
+    the solvers' rows beyond it left zero (not differentiable in reverse mode).
     """
     n_steps = tables.height.shape[0]
-    h = period / n_steps
+    h = period / (n_steps if steps is None else steps)
     k = arm.mass.shape[0]
     lanes = jnp.shape(period)
 
@@ -212,6 +218,17 @@ def linearise(arm: ArmTerms, ds: Downstream, tables: StageTables, period) -> Lin
 
     eye = jnp.broadcast_to(jnp.eye(2 * k).reshape((2 * k, 2 * k) + (1,) * len(lanes)),
                            (2 * k, 2 * k) + lanes)
-    (phi, d), solvers = jax.lax.scan(step, (eye, jnp.zeros((2 * k,) + lanes)),
-                                     jnp.arange(n_steps))
+    start = (eye, jnp.zeros((2 * k,) + lanes))
+    if steps is None:
+        (phi, d), solvers = jax.lax.scan(step, start, jnp.arange(n_steps))
+        return Linearisation(solvers, phi, d)
+
+    def store(index, carry):
+        carry, solvers = carry
+        carry, solver = step(carry, index)
+        return carry, jax.tree.map(lambda b, s: b.at[index].set(s), solvers, solver)
+
+    shapes = jax.eval_shape(lambda c: step(c, jnp.asarray(0))[1], start)
+    buffers = jax.tree.map(lambda a: jnp.zeros((n_steps,) + a.shape, a.dtype), shapes)
+    (phi, d), solvers = jax.lax.fori_loop(0, steps, store, (start, buffers))
     return Linearisation(solvers, phi, d)

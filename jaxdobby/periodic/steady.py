@@ -69,6 +69,10 @@ from .stepper import cycle_pass
 DEFAULT_STEPS = 432
 """Collocation steps per cycle (see the module docstring)."""
 
+STEPS_BY_SPEED = ((0.0, 432), (450.0, 360), (650.0, 288), (1000.0, 216))
+"""(lowest loom speed [r/min], collocation steps per cycle) of ``steps="speed"`` (see the module
+docstring): the fewest steps that keep the default's accuracy at that speed and above."""
+
 METRICS = ("deviation_pp", "deviation_max", "deviation_min", "velocity_deviation_amp",
            "acceleration_amp")
 """The metrics :func:`steady_state_metrics` returns (SI units), besides the status entries."""
@@ -247,8 +251,19 @@ def cycle_of(model: DobbyModel, steps: int = DEFAULT_STEPS) -> Cycle:
                                  rigid_arm(model, node_phases(steps)), terms.period))
 
 
-def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance: float = 1e-5,
-                         max_passes: int = 6, frequencies: bool = False) -> dict[str, Array]:
+def steps_for_speed(speed) -> Array:
+    """Collocation steps per cycle that keep the default accuracy at loom speed ``speed``
+    [rad/s] (:data:`STEPS_BY_SPEED`), int, any shape."""
+    speed_rpm = jnp.asarray(speed) * (30.0 / jnp.pi)
+    out = jnp.full(jnp.shape(speed_rpm), STEPS_BY_SPEED[0][1])
+    for lower, n in STEPS_BY_SPEED[1:]:
+        out = jnp.where(speed_rpm >= lower, n, out)
+    return out
+
+
+def steady_state_metrics(setup: Setup, *, steps: int | str = DEFAULT_STEPS,
+                         tolerance: float = 1e-5, max_passes: int = 6,
+                         frequencies: bool = False) -> dict[str, Array]:
     """Metrics of the periodic steady cycle of ``setup`` (see the module docstring).
 
     Args:
@@ -272,9 +287,18 @@ def steady_state_metrics(setup: Setup, *, steps: int = DEFAULT_STEPS, tolerance:
     if setup.machine.coupling != "two-way":
         raise ValueError("the batch evaluator solves the two-way coupled model; got coupling="
                          f"{setup.machine.coupling!r} (use jaxdobby.simulate for one-way)")
+    if steps == "speed":
+        size, count = DEFAULT_STEPS, steps_for_speed(setup.operating.speed)
+    elif isinstance(steps, int) and not isinstance(steps, bool) and steps >= 1:
+        size, count = steps, None
+    else:
+        raise ValueError(f"steps must be a positive integer or 'speed'; got {steps!r}")
     terms, freqs = model_terms(setup, frequencies=frequencies)
-    passes, residual, hi, lo, reachable = _solve(terms, rigid_motion(setup, steps),
-                                                 tolerance=tolerance, max_passes=max_passes)
+    chain = setup.machine.chain
+    (crank_start, _), _ = dead_centres(chain)
+    passes, residual, hi, lo, reachable = _solve(
+        terms, (chain, crank_start), jnp.asarray(size if count is None else count),
+        size=size, fixed=count is None, tolerance=tolerance, max_passes=max_passes)
     out = {
         "deviation_pp": hi[0] - lo[0],
         "deviation_max": hi[0],
@@ -312,14 +336,15 @@ def _start(x: Array) -> _Lanes:
 
 
 def _chord_pass(cycle: Cycle, solvers, chord_matrix: Array, lanes: _Lanes, tables=None,
-                steps: int | None = None, outputs: bool = True) -> _Lanes:
+                steps: int | None = None, outputs: bool = True, count=None) -> _Lanes:
     """One chord cycle of one sample: integrate from x, record, step x ← x + (I − Φ)⁻¹(F(x) − x).
     ``tables``, ``solvers``, ``steps``: as :func:`cycle_pass`'s; ``tables`` None:
     ``cycle.tables``. ``outputs`` False: a cycle whose extremes and reachability a later one
     replaces (NaN extremes, reachable)."""
     x = lanes.x
     run = cycle_pass(cycle.arm, cycle.downstream, cycle.tables if tables is None else tables,
-                     cycle.period, x, solvers=solvers, outputs=outputs, steps=steps)
+                     cycle.period, x, solvers=solvers, outputs=outputs, steps=steps,
+                     count=count)
     return _Lanes(lanes.passes + 1, x + gl.matmul(chord_matrix, run.end - x),
                   relative_residual(x, run.end), run.maxima, run.minima, run.reachable)
 
@@ -346,12 +371,12 @@ def batch_tables(terms: Terms, rigid: RigidArm, batched=False) -> StageTables:
         first.arm, first.downstream, rigid, first.period))
 
 
-def batch_linearise(terms: Terms, tables: StageTables):
+def batch_linearise(terms: Terms, tables: StageTables, count=None):
     """The linearisation of a batch with the lanes last (:func:`batch_terms`,
     :func:`batch_tables`): (the :class:`Cycle` without its tables, the
     :class:`~jaxdobby.periodic.linear.Linearisation`, the chord matrix (I − Φ)⁻¹ and the start
     state x_lin), each with the lanes last."""
-    lin = linearise(terms.arm, terms.downstream, tables, terms.period)
+    lin = linearise(terms.arm, terms.downstream, tables, terms.period, count)
     i_phi = jnp.moveaxis(jnp.eye(lin.monodromy.shape[0])[..., None] - lin.monodromy, -1, 0)
     # one matrix at a time (a batched LAPACK call can deadlock a 2-core CPU: see model_terms)
     chord_matrix = jnp.moveaxis(jax.lax.map(jnp.linalg.inv, i_phi), 0, -1)
@@ -359,7 +384,15 @@ def batch_linearise(terms: Terms, tables: StageTables):
     return rest, lin, chord_matrix, gl.matmul(chord_matrix, lin.rest_response)
 
 
-def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
+def _rigid(linkage, count, size: int) -> RigidArm:
+    """The rigid arm at the nodes of ``count`` steps per cycle in tables of ``size`` rows, from
+    ``linkage`` = (chain, crank start) (:func:`rigid_motion`)."""
+    chain, crank_start = linkage
+    return rigid_arm_of(chain, crank_start, node_phases(count, size))
+
+
+def _solve(terms: Terms, linkage, count, *, size: int, fixed: bool, tolerance: float,
+           max_passes: int):
     """The chord iteration of one sample from the linearised periodic state, until the residual
     is ≤ ``tolerance`` or ``max_passes`` cycles ran.
 
@@ -396,24 +429,35 @@ def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
         return lanes.passes, lanes.residual, lanes.maxima, lanes.minima, lanes.reachable
 
     @custom_vmap
-    def solve(terms, rigid):
+    def solve(terms, linkage, count):
+        count = None if fixed else count
+        rigid = _rigid(linkage, size if fixed else count, size)
         cycle = terms.cycle(tables_at(terms.arm, terms.downstream, rigid, terms.period))
-        lin = linearise(cycle.arm, cycle.downstream, cycle.tables, cycle.period)
+        lin = linearise(cycle.arm, cycle.downstream, cycle.tables, cycle.period, count)
         chord_matrix = jnp.linalg.inv(jnp.eye(lin.monodromy.shape[0]) - lin.monodromy)
         x = chord_matrix @ lin.rest_response
         return result(jax.lax.while_loop(
-            pending, lambda c: _chord_pass(cycle, lin.solvers, chord_matrix, c), _start(x)))
+            pending, lambda c: _chord_pass(cycle, lin.solvers, chord_matrix, c, count=count),
+            _start(x)))
 
     @solve.def_vmap
-    def solve_batch(size, batched, terms, rigid):
-        terms = batch_terms(terms, batched[0], size)
-        tables = batch_tables(terms, rigid, batched[1])
-        rest, lin, chord_matrix, x = batch_linearise(terms, tables)
-        width = min(size, ROUND_WIDTH)
+    def solve_batch(lanes_in, batched, terms, linkage, count):
+        terms = batch_terms(terms, batched[0], lanes_in)
+        # the batch integrates the most steps any of its lanes needs (all, in a chunk of
+        # rows grouped by their step count: jaxdobby.sensitivity.dobby)
+        count = None if fixed else (jnp.max(count) if batched[2] else count)
+        linked = jax.tree.map(lambda b: 0 if b else None, batched[1])
+        moving = any(jax.tree.leaves(batched[1]))
+        n = size if fixed else count
+        rigid = (jax.vmap(lambda link: _rigid(link, n, size), in_axes=(linked,))(linkage)
+                 if moving else _rigid(linkage, n, size))
+        tables = batch_tables(terms, rigid, jax.tree.map(lambda _: moving, rigid))
+        rest, lin, chord_matrix, x = batch_linearise(terms, tables, count)
+        width = min(lanes_in, ROUND_WIDTH)
 
         def full_cycle(lanes, outputs):
             return _chord_pass(rest, lin.solvers, chord_matrix, lanes, tables=tables,
-                               outputs=outputs)
+                               outputs=outputs, count=count)
 
         # a Python loop, not a fori_loop: a pass (a scan) inside another loop ran 8-10 % slower
         # in all (2026-12-07, 256 samples, one pinned core: 2.49 against 2.28 ms per sample;
@@ -430,7 +474,7 @@ def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
             # the W lanes' tables and solvers copied once per round, then read in place
             part, matrix, state, t, sv = jax.tree.map(
                 lambda a: a[..., pick], (rest, chord_matrix, lanes, tables, lin.solvers))
-            new = _chord_pass(part, sv, matrix, state, tables=t)
+            new = _chord_pass(part, sv, matrix, state, tables=t, count=count)
             keep = todo[pick]
             return jax.tree.map(
                 lambda old, value: old.at[..., pick].set(jnp.where(keep, value, old[..., pick])),
@@ -440,4 +484,4 @@ def _solve(terms: Terms, rigid: RigidArm, *, tolerance: float, max_passes: int):
         out = jax.tree.map(lambda a: jnp.moveaxis(a, -1, 0), out)
         return out, jax.tree.map(lambda _: True, out)
 
-    return solve(terms, rigid)
+    return solve(terms, linkage, count)

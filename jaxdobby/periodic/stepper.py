@@ -105,7 +105,7 @@ def _parabola_peaks(t, y):
 def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
                solvers=None, tangents: Array | None = None, full_jacobian: bool = False,
                outputs: bool = False, record: bool = False, steps: int | None = None,
-               iterations: int = 2) -> PassResult:
+               iterations: int = 2, count=None) -> PassResult:
     """Integrate one cycle from ``x0`` (see the module docstring).
 
     Args:
@@ -128,6 +128,10 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
         record: return the trajectory (see :class:`PassResult`).
         iterations: simplified-Newton iterations per step (static, ≥ 1; the outputs are taken
             at the stage states of the last one's residual).
+        count: None, the cycle is the tables' N steps (a scan); else its number of steps, a
+            run-time integer ≤ N (the tables' first ``count`` rows, made by
+            :func:`jaxdobby.periodic.cycle.node_phases` with a ``size``): a loop of that many
+            steps (not differentiable in reverse mode, no ``record``).
     """
     if iterations < 1:
         raise ValueError(f"iterations must be at least 1; got {iterations}")
@@ -140,7 +144,9 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
         raise ValueError("stored solvers do not carry tangents (see jaxdobby.periodic.linear)")
     solver_at = solvers if callable(solvers) else None
     xs_solvers = None if callable(solvers) else solvers
-    h = period / n_steps
+    if count is not None and record:
+        raise ValueError("a pass of a run-time step count does not record its trajectory")
+    h = period / (n_steps if count is None else count)
     rows = ds.rows
     m = 0 if tangents is None else tangents.shape[1]
 
@@ -206,8 +212,17 @@ def cycle_pass(arm: ArmTerms, ds: Downstream, tables, period, x0: Array, *,
         nan2 = jnp.full((3, 2) + lanes, jnp.nan)
         ext0 = (jnp.full((2,) + lanes, jnp.nan), nan2, nan2, jnp.full((3,) + lanes, -jnp.inf),
                 jnp.full((3,) + lanes, jnp.inf), jnp.ones(lanes, bool))
-    (q, v, _, tan, ext), trajectory = jax.lax.scan(step, (q0, v0, prev, tan0, ext0),
-                                                   (jnp.arange(n_steps), xs_tables, xs_solvers))
+    carry = (q0, v0, prev, tan0, ext0)
+    if count is None:
+        (q, v, _, tan, ext), trajectory = jax.lax.scan(
+            step, carry, (jnp.arange(n_steps), xs_tables, xs_solvers))
+    else:
+        def at(index, tree):
+            return jax.tree.map(lambda a: a[index], tree)
+
+        (q, v, _, tan, ext), trajectory = jax.lax.fori_loop(
+            0, count, lambda n, c: step(c, (n, at(n, xs_tables), at(n, xs_solvers)))[0],
+            carry), None
     if outputs:
         hist_t, hist_y, head, hi, lo, ok = ext
         # the cycle is periodic: refine the extrema at the seam too

@@ -248,9 +248,21 @@ def _check_outputs(out_info, chunk_size: int) -> None:
             raise TypeError(f"metric {k!r} must be a float; got {v.dtype}")
 
 
+def chunk_order(groups: np.ndarray, chunk_size: int) -> np.ndarray:
+    """The rows in the order chunks take them when rows of different ``groups`` (one int per
+    row) must not share a chunk: group by group (ascending), each group's rows in their order
+    and padded to whole chunks with copies of its last row."""
+    parts = []
+    for g in np.unique(groups):
+        rows = np.flatnonzero(groups == g)
+        parts.append(np.concatenate([rows, np.repeat(rows[-1:], -len(rows) % chunk_size)]))
+    return np.concatenate(parts)
+
+
 def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = DEFAULT_CHUNK,
              devices: int | Sequence[jax.Device] | None = None, store: ChunkStore | None = None,
-             progress: Progress | None = None, stored: StoredModel | None = None) -> Evaluation:
+             progress: Progress | None = None, stored: StoredModel | None = None,
+             groups: np.ndarray | None = None) -> Evaluation:
     """Evaluate ``model`` on every row of ``samples`` (see the module docstring).
 
     Args:
@@ -264,6 +276,10 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = DEFAULT_
         progress: called with (rows done, rows in this process's share) once at the start and
             after each finished chunk.
         stored: keep the traced program of the model on disk (:class:`StoredModel`).
+        groups: (M,) ints, or None: rows of different groups never share a chunk
+            (:func:`chunk_order`; the store's chunks then hold rows in that order). For a
+            model whose chunk runs as long as its most demanding row (the dobby's steps per
+            cycle by speed: :func:`jaxdobby.sensitivity.dobby.step_groups`).
 
     Returns:
         The outputs of every row, identical on every process.
@@ -274,6 +290,25 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = DEFAULT_
         raise ValueError(f"samples must be a non-empty (M, D) matrix; got shape {samples.shape}")
     if not np.all(np.isfinite(samples)):
         raise ValueError("samples must be finite")
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != samples.shape[:1]:
+            raise ValueError(f"groups must have one entry per row ({samples.shape[0]}); got "
+                             f"shape {groups.shape}")
+        order = chunk_order(groups, chunk_size)
+        first = np.zeros(len(order), bool)
+        first[np.unique(order, return_index=True)[1]] = True  # each row once, padding not
+        real = np.add.reduceat(first, np.arange(0, len(order), chunk_size))
+        ev = _evaluate(model, samples[order], chunk_size, devices, store, progress, stored, real)
+        where = np.empty(len(samples), int)
+        where[order[first]] = np.flatnonzero(first)
+        return dataclasses.replace(ev, outputs={k: v[where] for k, v in ev.outputs.items()})
+    return _evaluate(model, samples, chunk_size, devices, store, progress, stored)
+
+
+def _evaluate(model, samples, chunk_size, devices, store, progress, stored, real=None):
+    """:func:`evaluate` of rows in chunk order; ``real``: rows of each chunk that are not
+    padding (counted by ``progress``), None: all."""
     total, dim = samples.shape
     devs = local_devices(devices)
     compiled, sharding = chunk_function(model, chunk_size, dim, devs, stored)
@@ -282,14 +317,15 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = DEFAULT_
     proc, n_proc = jax.process_index(), jax.process_count()
     mine = list(range(proc, n_chunks, n_proc))
     rows = {i: (i * chunk_size, min((i + 1) * chunk_size, total)) for i in mine}
-    share = sum(b - a for a, b in rows.values())
+    counted = {i: b - a if real is None else int(real[i]) for i, (a, b) in rows.items()}
+    share = sum(counted.values())
 
     results: dict[int, dict[str, np.ndarray]] = {}
     stored = store.finished() if store is not None else set()
     for i in mine:
         if i in stored:
             results[i] = _read(store, i, rows[i], list(dtypes))
-    done = sum(rows[i][1] - rows[i][0] for i in results)
+    done = sum(counted[i] for i in results)
     if progress is not None:
         progress(done, share)
 
@@ -300,7 +336,7 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = DEFAULT_
         if store is not None:
             store.write_chunk(i, (a, b), host, process=proc)
         results[i] = host
-        done += b - a
+        done += counted[i]
         if progress is not None:
             progress(done, share)
 

@@ -265,6 +265,10 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
                 "rows": int(samples.shape[0]), "samples_sha256": samples_digest(samples)}
     if steps is not None:  # (absent at the default: runs of earlier versions resume)
         manifest["steps"] = steps
+    groups = model.row_groups(space, samples) if (
+        steps is None and model.row_groups is not None) else None
+    if groups is not None:  # chunks hold rows grouped by steps: not an earlier version's run
+        manifest["chunk_order"] = "steps per cycle by speed"
     store = ChunkStore(out, manifest)
     try:
         store.prepare(config.resume)
@@ -276,7 +280,8 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
 
     t0 = time.perf_counter()
     evaluation = evaluate(fn, samples, chunk_size=chunk, devices=config.devices,
-                          store=store, progress=progress, stored=stored_model(model, space, steps))
+                          store=store, progress=progress, stored=stored_model(model, space, steps),
+                          groups=groups)
     seconds = time.perf_counter() - t0
     writer = jax.process_index() == 0
     files = []
@@ -285,7 +290,8 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
             f, samples=samples, **{f"output_{k}": v for k, v in evaluation.outputs.items()})))
     run_info = {"model": model.name, "rows": int(samples.shape[0]), "chunk_size": chunk,
                 **({} if model.default_steps is None else
-                   {"steps": model.default_steps if steps is None else steps}),
+                   {"steps": steps if steps is not None else (
+                       "by speed" if model.row_groups is not None else model.default_steps)}),
                 "devices": evaluation.devices, "processes": evaluation.processes,
                 "chunks_computed_here": len(evaluation.computed_chunks),
                 "evaluation_seconds": round(seconds, 3)}

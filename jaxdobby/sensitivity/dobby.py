@@ -23,8 +23,10 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from ..periodic import DEFAULT_STEPS, steady_state_metrics
+from ..periodic.steady import steps_for_speed
 from ..parameters import PARAMETERS, Setup, apply
 from ..stroke import arc_length_for_stroke, stroke_range
 from .models import ModelSpec
@@ -54,15 +56,19 @@ DEFAULT_PROBLEM = ("speed", "warp_force", "stroke", "thickness")
 """The source study's four parameters (DESIGN.md §6)."""
 
 
-def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
+def dobby_model(base: Setup | None = None, *, steps: int | None = None,
                 tolerance: float = 1e-5):
     """``build(space)`` for the dobby: a pure function of one sample row (see the module).
 
     Args:
         base: the machine and operating point the samples start from (default: built-in).
-        steps: collocation steps per cycle (:func:`jaxdobby.periodic.steady_state_metrics`).
+        steps: collocation steps per cycle (:func:`jaxdobby.periodic.steady_state_metrics`);
+            None: by the row's speed (``steps="speed"``: the fewest that keep the accuracy of
+            432 steps at 400 r/min; a batch integrates its rows' most, so the pipeline groups
+            rows by it, :func:`step_groups`).
         tolerance: relative periodicity residual of the steady state.
     """
+    steps = "speed" if steps is None else steps
     def build(space: ParameterSpace):
         names, scales = space.names, space.si_scales
         start = Setup() if base is None else base  # built here: needs float64 switched on
@@ -85,6 +91,16 @@ def dobby_model(base: Setup | None = None, *, steps: int = DEFAULT_STEPS,
         return model
 
     return build
+
+
+def step_groups(space: ParameterSpace, samples) -> np.ndarray | None:
+    """Steps per cycle of each row of ``samples`` under the default build (by its speed,
+    :func:`jaxdobby.periodic.steady.steps_for_speed`), (M,) ints; None when the speed is not
+    sampled (every row then the base machine's)."""
+    if "speed" not in space.names:
+        return None
+    i = space.names.index("speed")
+    return np.asarray(steps_for_speed(np.asarray(samples)[:, i] * space.si_scales[i]))
 
 
 def setup_of_row(base: Setup, names, scales, x):
@@ -124,5 +140,5 @@ def check_strokes(space: ParameterSpace, base: Setup) -> None:
 
 
 DOBBY = ModelSpec("dobby", DOBBY_PARAMETERS, DEFAULT_PROBLEM, dobby_model(),
-                  lambda steps: dobby_model(steps=steps), DEFAULT_STEPS)
+                  lambda steps: dobby_model(steps=steps), DEFAULT_STEPS, step_groups)
 """The dobby (built-in default machine) as a Sobol model."""

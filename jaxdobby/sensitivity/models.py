@@ -44,7 +44,12 @@ class ModelSpec:
         build_with_steps: for a model solved on a fixed number of time steps per cycle,
             ``build_with_steps(n)`` is its ``build`` with n steps (``jaxdobby sobol --steps``:
             accuracy traded for speed); None: the model has no such setting.
-        default_steps: the steps per cycle of ``build`` (with ``build_with_steps``).
+        default_steps: the steps per cycle of ``build`` (with ``build_with_steps``); with
+            ``row_groups``, the most.
+        row_groups: for a model whose ``build`` chooses each row's steps per cycle from the
+            row (the dobby: from its speed), ``row_groups(space, samples)`` → the (M,) step
+            counts of the rows (None: all alike), so that the pipeline gives every chunk rows
+            of one count (:func:`jaxdobby.sensitivity.batch.evaluate`'s ``groups``).
     """
 
     name: str
@@ -53,10 +58,12 @@ class ModelSpec:
     build: Callable[[ParameterSpace], Model]
     build_with_steps: Callable[[int], Callable[[ParameterSpace], Model]] | None = None
     default_steps: int | None = None
+    row_groups: Callable[[ParameterSpace, object], object] | None = None
 
     def builder(self, steps: int | None = None) -> Callable[[ParameterSpace], Model]:
-        """``build`` for ``steps`` time steps per cycle (None or :attr:`default_steps`: the
-        default ``build`` itself); see :func:`check_steps` for the valid values."""
+        """``build`` for ``steps`` time steps per cycle (None, or :attr:`default_steps` of a
+        model without ``row_groups``: the default ``build`` itself); see :func:`check_steps`
+        for the valid values."""
         steps = check_steps(self, steps)
         return self.build if steps is None else self.build_with_steps(steps)
 
@@ -69,7 +76,7 @@ step of every row, grow with the steps)."""
 
 def check_steps(model: ModelSpec, steps) -> int | None:
     """``steps`` checked for ``model`` (raise ``ValueError`` naming ``--steps`` and the valid
-    range); None when it is None or the model's default (the default build)."""
+    range); None when it is None or the model's fixed default (the default build)."""
     if steps is None:
         return None
     if model.build_with_steps is None:
@@ -78,7 +85,7 @@ def check_steps(model: ModelSpec, steps) -> int | None:
             MIN_STEPS <= steps <= MAX_STEPS):
         raise ValueError(f"--steps must be an integer {MIN_STEPS}…{MAX_STEPS} (collocation steps "
                          f"per cycle; default {model.default_steps}); got {steps!r}")
-    return None if steps == model.default_steps else steps
+    return None if steps == model.default_steps and model.row_groups is None else steps
 
 
 def ishigami(x: Array, a: float = 7.0, b: float = 0.1) -> Array:
