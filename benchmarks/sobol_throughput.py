@@ -3,8 +3,9 @@
 Measures, on this machine, float64, compile time apart:
 
 * samples per second of :data:`jaxdobby.sensitivity.DOBBY` (steady-state metrics of the coupled
-  model, :func:`jaxdobby.periodic.steady_state_metrics`) over rows of the default problem's Sobol
-  design, in chunks of ``--chunk`` rows: in 1 and in 2 concurrent processes of one CPU device
+  model, :func:`jaxdobby.periodic.steady_state_metrics`, each row's steps per cycle by its
+  speed and rows grouped by them into chunks, as the command runs it) over rows of the default
+  problem's Sobol design, in chunks of ``--chunk`` rows: in 1 and in 2 concurrent processes of one CPU device
   each (each its share of the rows, timing started together after all have compiled), and in
   one process of 2 CPU devices (``shard_map``, what a plain ``jaxdobby sobol`` does on a 2-core
   machine); median of ``--repeats`` timed passes;
@@ -15,8 +16,9 @@ Measures, on this machine, float64, compile time apart:
 * with ``--accuracy``: the largest relative error of each metric at the 16 corners of the
   default box against the adaptive reference (``jaxdobby.simulate(method="adaptive")``,
   rtol 1e-8), the accuracy the throughput is measured at;
-* with ``--steps N``: the same at N collocation steps per cycle instead of the default 432
-  (``jaxdobby sobol --steps N``), written to ``sobol_throughput_steps<N>.json``.
+* with ``--steps N``: the same at N collocation steps per cycle for every row instead of the
+  default's by speed (``jaxdobby sobol --steps N``), written to ``sobol_throughput_steps<N>.json``
+  (``--steps 432``: every row at the most the default uses, its speed's baseline).
 
 Writes ``benchmarks/results/sobol_throughput.json`` and ``.md``.
 
@@ -56,8 +58,12 @@ def worker(args) -> dict:
     rows = space.sample(args.n, second_order=True, seed=0)[: args.rows]
     rows = rows[args.share::args.of]  # this process's share of the rows
     model = DOBBY.builder(args.steps)(space)
+    # as the command: without --steps each row's steps per cycle follow its speed, and rows
+    # of one step count share chunks (padded: counted in the time, not in the rows)
+    groups = DOBBY.row_groups(space, rows) if args.steps is None else None
     t0 = time.perf_counter()
-    evaluate(model, rows[: args.chunk], chunk_size=args.chunk, devices=args.devices)  # trace + compile + one chunk
+    evaluate(model, rows[: args.chunk], chunk_size=args.chunk, devices=args.devices,
+             groups=None if groups is None else groups[: args.chunk])  # trace + compile + one chunk
     first = time.perf_counter() - t0
     if args.barrier:  # start timing together with the other processes
         Path(f"{args.barrier}.ready{args.share}").touch()
@@ -66,12 +72,13 @@ def worker(args) -> dict:
     times = []
     for _ in range(args.repeats):
         t0 = time.perf_counter()
-        ev = evaluate(model, rows, chunk_size=args.chunk, devices=args.devices)
+        ev = evaluate(model, rows, chunk_size=args.chunk, devices=args.devices, groups=groups)
         times.append(time.perf_counter() - t0)
     run = statistics.median(times)
     chunk_time = run * args.chunk / len(rows)
     out = {"devices": len(jax.devices()), "processes": args.of, "rows": len(rows),
            "chunk": args.chunk,
+           "mean_steps": float(np.mean(groups)) if groups is not None else args.steps or 432,
            "seconds": run, "samples_per_s": len(rows) / run,
            "compile_s": max(first - chunk_time, 0.0),
            "failed": int(np.sum(~ev.outputs["ok"])),
@@ -124,6 +131,7 @@ def in_processes(processes: int, args, devices: int = 1) -> dict:
     return {"devices": devices, "processes": processes, "rows": rows, "chunk": args.chunk,
             "seconds": seconds, "samples_per_s": rows / seconds,
             "compile_s": max(r["compile_s"] for r in runs),
+            "mean_steps": sum(r["mean_steps"] * r["rows"] for r in runs) / rows,
             "failed": sum(r["failed"] for r in runs)}
 
 
@@ -180,14 +188,14 @@ def cached_study() -> dict:
 
 def accuracy(steps: int | None = None) -> dict:
     """Largest relative error per metric over the 16 corners, batch vs adaptive reference, at
-    ``steps`` collocation steps per cycle (None: the default)."""
+    ``steps`` collocation steps per cycle (None: the default's, by each corner's speed)."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
     import jax.numpy as jnp
 
     from jaxdobby import simulate
-    from jaxdobby.periodic import DEFAULT_STEPS, METRICS, steady_state_metrics
+    from jaxdobby.periodic import METRICS, steady_state_metrics
     from jaxdobby.parameters import Setup, apply
 
     rpm = 3.141592653589793 / 30.0
@@ -199,7 +207,7 @@ def accuracy(steps: int | None = None) -> dict:
     def setup(r):
         return apply(Setup(), dict(zip(names, r)))
 
-    n = steps or DEFAULT_STEPS
+    n = steps or "speed"
     batch = jax.jit(jax.vmap(lambda r: steady_state_metrics(setup(r), steps=n)))(
         jnp.asarray(rows))
     worst = dict.fromkeys(METRICS, 0.0)
@@ -213,10 +221,11 @@ def accuracy(steps: int | None = None) -> dict:
 
 
 def markdown(result: dict) -> str:
-    lines = ["| processes × devices | rows | chunk | samples/s | compile [s] | failed |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| processes × devices | rows | mean steps | chunk | samples/s | compile [s] | failed |",
+             "|---|---|---|---|---|---|---|"]
     for r in result["runs"]:
-        lines.append(f"| {r['processes']} × {r['devices']} | {r['rows']} | {r['chunk']} | "
+        lines.append(f"| {r['processes']} × {r['devices']} | {r['rows']} | "
+                     f"{r.get('mean_steps', 432):.0f} | {r['chunk']} | "
                      f"{r['samples_per_s']:.0f} | {r['compile_s']:.1f} | {r['failed']} |")
     for r in result.get("studies", []):
         cache = ("with the persistent compilation cache filled by a previous run"
@@ -238,7 +247,7 @@ def markdown(result: dict) -> str:
     if result.get("steps"):
         lines.append("")
         lines.append(f"At {result['steps']} collocation steps per cycle (`jaxdobby sobol --steps "
-                     f"{result['steps']}`), not the default 432.")
+                     f"{result['steps']}`) for every row, not the default's by speed.")
     lines.append("")
     lines.append(f"Measured {result['date']} on {result['machine']}, jax {result['jax']}.")
     return "\n".join(lines) + "\n"
@@ -253,7 +262,9 @@ def main(argv=None):
                     help="CPU device counts to time in one process (shard_map)")
     ap.add_argument("--devices", type=int, default=1, help=argparse.SUPPRESS)
     ap.add_argument("--n", type=int, default=1024, help="base samples of the design")
-    ap.add_argument("--rows", type=int, default=2048, help="rows timed per pass")
+    ap.add_argument("--rows", type=int, default=10240,
+                    help="rows timed per pass (default: the whole default study's 10 240, whose "
+                         "speeds give the command's mix of steps per cycle and chunk padding)")
     from jaxdobby.sensitivity.command import DEFAULT_CHUNK
 
     ap.add_argument("--chunk", type=int, default=DEFAULT_CHUNK,
@@ -265,7 +276,8 @@ def main(argv=None):
     ap.add_argument("--accuracy", action="store_true",
                     help="also the corners against the adaptive reference (minutes)")
     ap.add_argument("--steps", type=int, default=None,
-                    help="collocation steps per cycle (default: the model's, 432)")
+                    help="collocation steps per cycle of every row (default: the model's, by each "
+                         "row's speed, 216-432)")
     ap.add_argument("--out", default=str(RESULTS))
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--share", type=int, default=0, help=argparse.SUPPRESS)

@@ -40,7 +40,22 @@ within 2.2e-7 of the reference): the velocity deviation's amplitude 8.2e-4, 2.4e
 batch's own errors, not the reference's, which is why the steps were not cut to gain speed
 (360 steps would run ~23 % faster). The shooting tolerance costs little accuracy: the metrics
 are those of a start state within ~``tolerance`` of the periodic one, and on 256 random samples
-1e-5 changed them by ≤ 7e-7 relative against 1e-7.
+1e-5 changed them by ≤ 7e-7 relative against 1e-7 (and 1e-4 by up to 4.7e-5 on 512: the
+tolerance cannot be relaxed to save the third cycle; 2026-12-07).
+
+**Steps by speed** (``steps="speed"``, what a Sobol study runs). The error at a given step
+count falls with the speed: the arm's modes, which set it, get more steps per period of theirs
+when the cycle is short. So each sample may take the fewest steps that keep the 432 steps'
+accuracy at 400 r/min: :data:`STEPS_BY_SPEED`, 360 steps from 450 r/min, 288 from 650, 216
+from 1000 (multiples of 72, so the default dwell's boundaries stay step boundaries). Measured
+at the slowest speed of each (8 corners of warp force × stroke × thickness against the
+adaptive reference, 2026-12-07; largest relative error, the velocity deviation's amplitude
+each time): 2.5e-5, 2.8e-5, 1.6e-5 (432 steps at 400 r/min: 2.3e-5); above a threshold it
+falls (1.7e-5 at 480 r/min with 360 steps, 2.2e-5 at 700 with 288, 1.0e-5 at 1100 with 216); a
+slow test holds the thresholds to 3e-5. The tables keep the 432 rows of the default (a static
+size) and the linearisation and the passes loop over the run-time count; a batch integrates
+the most its lanes need, so :mod:`jaxdobby.sensitivity` gives each chunk rows of one count
+(averaging ~297 steps over the default box). Reverse-mode gradients need the fixed steps.
 """
 
 from __future__ import annotations
@@ -269,7 +284,9 @@ def steady_state_metrics(setup: Setup, *, steps: int | str = DEFAULT_STEPS,
     Args:
         setup: machine and operating point (two-way coupling; any number of modes, either warp
             law). Vmappable over its float fields; jittable.
-        steps: collocation steps per cycle (static).
+        steps: collocation steps per cycle (static), or ``"speed"``: by the sample's speed,
+            :func:`steps_for_speed` (see the module docstring; a batch integrates its lanes'
+            most).
         tolerance: relative periodicity residual to stop at and to call converged.
         max_passes: cycles at most (static bound of the loop).
         frequencies: also return the coupled natural frequencies over the cycle

@@ -147,8 +147,10 @@ def add_arguments(parser: argparse.ArgumentParser,
 
 
 STEPS_HELP = (
-    "collocation steps per cycle of the dobby models, an integer 72…4320 (default 432: every "
-    "metric within 3e-5 of the adaptive reference at the corners of the default box). Fewer "
+    "collocation steps per cycle of every row of the dobby models, an integer 72…4320 "
+    "(default, --model dobby: by each row's speed, 432 below 450 r/min, 360 below 650, 288 "
+    "below 1000, 216 above, every metric within 3e-5 of the adaptive reference at the corners "
+    "of each speed range; dobby-stress: 432). Fewer "
     "run faster and less accurately (measured on --model dobby): 216 steps give 1.7× the "
     "samples per second; over the default study's 10 240 rows they move the velocity "
     "deviation's amplitude by up to 1.3e-3 relative (median 1e-5), the other metrics by up to "
