@@ -5,7 +5,7 @@ Measures, on this machine, float64, compile time apart:
 * samples per second of :data:`jaxdobby.sensitivity.DOBBY` (steady-state metrics of the coupled
   model, :func:`jaxdobby.periodic.steady_state_metrics`, each row's steps per cycle by its
   speed and rows grouped by them into chunks, as the command runs it) over rows of the default
-  problem's Sobol design, in chunks of ``--chunk`` rows: in 1 and in 2 concurrent processes of one CPU device
+  problem's Sobol design, in chunks of ``--chunk`` rows (default: the command's, 32 per device): in 1 and in 2 concurrent processes of one CPU device
   each (each its share of the rows, timing started together after all have compiled), and in
   one process of 2 CPU devices (``shard_map``, what a plain ``jaxdobby sobol`` does on a 2-core
   machine); median of ``--repeats`` timed passes;
@@ -58,6 +58,9 @@ def worker(args) -> dict:
     rows = space.sample(args.n, second_order=True, seed=0)[: args.rows]
     rows = rows[args.share::args.of]  # this process's share of the rows
     model = DOBBY.builder(args.steps)(space)
+    from jaxdobby.sensitivity.command import default_chunk
+
+    args.chunk = args.chunk or default_chunk(args.devices)  # a plain jaxdobby sobol's
     # as the command: without --steps each row's steps per cycle follow its speed, and rows
     # of one step count share chunks (padded: counted in the time, not in the rows)
     groups = DOBBY.row_groups(space, rows) if args.steps is None else None
@@ -99,7 +102,7 @@ def _env(devices: int = 1, cache: str = "off") -> dict:
 
 def _worker_cmd(args, share: int, of: int, barrier: str | None, devices: int = 1) -> list[str]:
     cmd = [sys.executable, __file__, "--worker", "--devices", str(devices), "--n", str(args.n), "--rows", str(args.rows),
-           "--chunk", str(args.chunk), "--repeats", str(args.repeats), "--share", str(share),
+           "--chunk", str(args.chunk or 0), "--repeats", str(args.repeats), "--share", str(share),
            "--of", str(of), "--no-study"] + (
                ["--steps", str(args.steps)] if args.steps else [])
     return cmd + (["--barrier", barrier] if barrier else [])
@@ -128,7 +131,7 @@ def in_processes(processes: int, args, devices: int = 1) -> dict:
     runs = [json.loads(o.strip().splitlines()[-1]) for o, _ in outs]
     rows = sum(r["rows"] for r in runs)
     seconds = max(r["seconds"] for r in runs)
-    return {"devices": devices, "processes": processes, "rows": rows, "chunk": args.chunk,
+    return {"devices": devices, "processes": processes, "rows": rows, "chunk": runs[0]["chunk"],
             "seconds": seconds, "samples_per_s": rows / seconds,
             "compile_s": max(r["compile_s"] for r in runs),
             "mean_steps": sum(r["mean_steps"] * r["rows"] for r in runs) / rows,
@@ -265,11 +268,9 @@ def main(argv=None):
     ap.add_argument("--rows", type=int, default=10240,
                     help="rows timed per pass (default: the whole default study's 10 240, whose "
                          "speeds give the command's mix of steps per cycle and chunk padding)")
-    from jaxdobby.sensitivity.command import DEFAULT_CHUNK
-
-    ap.add_argument("--chunk", type=int, default=DEFAULT_CHUNK,
-                    help=f"rows per chunk (default {DEFAULT_CHUNK}: a plain jaxdobby sobol's, "
-                         "split over the devices)")
+    ap.add_argument("--chunk", type=int, default=None,
+                    help="rows per chunk (default: a plain jaxdobby sobol's on that many devices, "
+                         "32 per device)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-study", dest="study", action="store_false",
                     help="skip the full default study")

@@ -92,9 +92,12 @@ METRICS = ("deviation_pp", "deviation_max", "deviation_min", "velocity_deviation
            "acceleration_amp")
 """The metrics :func:`steady_state_metrics` returns (SI units), besides the status entries."""
 
-ROUND_WIDTH = 32
+ROUND_WIDTH = 16
 """Lanes integrated per round of the batched chord iteration (:func:`_solve`); all of a
-smaller batch."""
+smaller batch. A Sobol chunk gives each device 32 samples
+(:data:`jaxdobby.sensitivity.batch.DEVICE_CHUNK`), of which ~40 % need a third cycle: 16
+lanes per round measured 1.42–1.43 ms per sample against 1.48–1.50 with 32 (256 rows of
+650–1000 r/min in chunks of 32, one pinned core, 2026-12-07; 8: 1.43–1.44)."""
 
 FULL_CYCLES = 2
 """Cycles every sample integrates, converged or not (the batch integrates them for all its

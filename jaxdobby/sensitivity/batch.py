@@ -178,17 +178,24 @@ def chunk_key(stored: StoredModel, exported, share, devices: Sequence[jax.Device
     return executable_key(f"{stored.name}-chunk", exported, [share], setting)
 
 
-DEFAULT_CHUNK = 256
-"""Default rows per chunk (the command line rounds it up to a multiple of the device count).
+DEVICE_CHUNK = 32
+"""Rows per device of a chunk when the command line sets none (``jaxdobby sobol``).
 
-On a CPU the dobby's batch evaluator holds ~0.56 MB per sample while a chunk runs (the rigid
-motion's tables at the 1296 collocation nodes and the steps' inverted Newton matrices, each
-sample's own), so a chunk outgrows the caches and the temporary buffer XLA allocates for each
-run grows with it (145 MB for 256 samples on one device). Measured (2-core AMD EPYC,
-2026-12-07, ``benchmarks/sobol_throughput.py --chunk C``, one process of two devices: C/2 samples
-per device): 1102 and 947 samples/s for C = 256 and 512 run one after the other, 1048 and 1150
-for C = 128 and 256 in another pair; one device, one pinned core: 1.69, 1.64, 1.79 and 2.26 ms
-per sample with 64, 128, 256 and 512 samples per device."""
+XLA's CPU runtime allocates one temporary buffer per run of a chunk program, and the dobby's
+batch evaluator holds ~0.67 MB per sample in it (the rigid motion's tables at the 1296
+collocation nodes and the steps' inverted Newton matrices, each sample's own). glibc serves an
+allocation above 32 MB (its largest ``mmap`` threshold) with fresh pages on every run, which
+the kernel faults in and zeroes: measured (128 samples per device, one pinned core, AMD EPYC,
+2026-12-07) 20 880 page faults per run, 86 MB, and with them switched off
+(``GLIBC_TUNABLES=glibc.malloc.hugetlb=1:glibc.malloc.mmap_max=0``) 1.36 against 1.62 ms
+per sample at 432 steps. 32 samples per device keep the buffer below 32 MB, which glibc then
+reuses from run to run (no page fault in a run): ``benchmarks/sobol_throughput.py --chunk C``,
+one process of two devices, the default study's rows: 1067, 1219, 1296, 1061 and 945
+samples/s for C = 32, 48, 64, 128, 256."""
+
+DEFAULT_CHUNK = 2 * DEVICE_CHUNK
+"""Rows per chunk of :func:`evaluate` by default: :data:`DEVICE_CHUNK` on each of a 2-core
+CPU's two devices."""
 
 
 CPU_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False,

@@ -34,7 +34,8 @@ import jax
 import numpy as np
 
 from .analysis import SobolResult, analyze, check_settings
-from .batch import (DEFAULT_CHUNK, Evaluation, Progress, StoredModel, check_chunk_size, evaluate,
+from .batch import (DEFAULT_CHUNK, DEVICE_CHUNK, Evaluation, Progress, StoredModel,
+                    check_chunk_size, evaluate,
                     local_devices)
 from .dobby import DOBBY
 from .failures import POLICIES, FailedSamplesError
@@ -63,10 +64,11 @@ class SobolConfig:
         resume: continue the run in ``out`` from its finished chunks.
         devices: local devices to use (None: all).
         json: the CLI prints JSON instead of a table.
-        chunk_size: rows per chunk (None: :data:`~jaxdobby.sensitivity.batch.DEFAULT_CHUNK`
-            rounded up to a multiple of the devices).
+        chunk_size: rows per chunk (None: :data:`~jaxdobby.sensitivity.batch.DEVICE_CHUNK`
+            per device).
         model: name of the model in :data:`MODELS`.
-        steps: collocation steps per cycle of the dobby's models (None: their default, 432);
+        steps: collocation steps per cycle of the dobby's models (None: their default, by
+            each row's speed for the dobby, 432 for dobby-stress);
             fewer run faster and less accurately (:data:`STEPS_HELP`).
         on_failure: failed-sample policy, ``"raise"`` or ``"drop"`` (see ``failures.py``).
         num_resamples, conf_level: bootstrap resamples and level of the intervals.
@@ -127,7 +129,8 @@ def add_arguments(parser: argparse.ArgumentParser,
     a("--devices", type=int, default=None, help="local devices to use (default all; on CPU, K "
       "devices need XLA_FLAGS=--xla_force_host_platform_device_count=K)")
     a("--json", action="store_true", help="print the indices as JSON instead of a table")
-    a("--chunk-size", type=int, default=None, help=f"rows per chunk (default {DEFAULT_CHUNK})")
+    a("--chunk-size", type=int, default=None,
+      help=f"rows per chunk (default {DEVICE_CHUNK} per device: {DEFAULT_CHUNK} on 2 devices)")
     a("--steps", type=int, default=None, help=STEPS_HELP)
     a("--on-failure", choices=POLICIES, default="raise", help="failed samples: 'raise' (default, "
       "no indices) or 'drop' (leave out their base samples)")
@@ -317,9 +320,9 @@ def run_sobol(config: SobolConfig, model: ModelSpec | None = None, *,
 
 
 def default_chunk(devices: int) -> int:
-    """Rows per chunk when the config sets none: :data:`DEFAULT_CHUNK` rounded up to a
-    multiple of the device count."""
-    return -(-DEFAULT_CHUNK // devices) * devices
+    """Rows per chunk when the config sets none: :data:`~jaxdobby.sensitivity.batch.DEVICE_CHUNK`
+    rows per device."""
+    return DEVICE_CHUNK * devices
 
 
 SHIPPED_DEVICES = 2
