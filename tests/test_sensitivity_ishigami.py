@@ -299,6 +299,8 @@ def test_grouped_rows_share_chunks_only_within_their_group(tmp_path):
     assert again.computed_chunks == () and np.array_equal(again.outputs["y"], got.outputs["y"])
     with pytest.raises(ValueError, match="groups must have one entry per row"):
         evaluate(model, x, chunk_size=32, groups=groups[:-1])
+    with pytest.raises(ValueError, match="chunk_size must be a positive multiple"):
+        evaluate(model, x, chunk_size=0, groups=groups)
 
 
 def test_integer_status_codes():

@@ -302,6 +302,7 @@ def evaluate(model: Callable, samples: np.ndarray, *, chunk_size: int = DEFAULT_
         if groups.shape != samples.shape[:1]:
             raise ValueError(f"groups must have one entry per row ({samples.shape[0]}); got "
                              f"shape {groups.shape}")
+        check_chunk_size(chunk_size, 1)  # (the device count's multiple: checked below)
         order = chunk_order(groups, chunk_size)
         first = np.zeros(len(order), bool)
         first[np.unique(order, return_index=True)[1]] = True  # each row once, padding not
