@@ -257,9 +257,14 @@ def rigid_motion(setup: Setup, steps: int = DEFAULT_STEPS) -> RigidArm:
     """The rigid arm's motion at the collocation nodes of ``steps`` steps per cycle, from the
     linkage alone (the crank start as :func:`~jaxdobby.dobby.build_model`'s): a batch whose
     linkage is not sampled computes it once for all its lanes."""
+    return _rigid(_linkage(setup), steps, steps)
+
+
+def _linkage(setup: Setup):
+    """(chain, crank angle at t = 0 [rad]) of ``setup``: what its rigid motion depends on."""
     chain = setup.machine.chain
     (crank_start, _), _ = dead_centres(chain)
-    return rigid_arm_of(chain, crank_start, node_phases(steps))
+    return chain, crank_start
 
 
 def cycle_of(model: DobbyModel, steps: int = DEFAULT_STEPS) -> Cycle:
@@ -314,10 +319,8 @@ def steady_state_metrics(setup: Setup, *, steps: int | str = DEFAULT_STEPS,
     else:
         raise ValueError(f"steps must be a positive integer or 'speed'; got {steps!r}")
     terms, freqs = model_terms(setup, frequencies=frequencies)
-    chain = setup.machine.chain
-    (crank_start, _), _ = dead_centres(chain)
     passes, residual, hi, lo, reachable = _solve(
-        terms, (chain, crank_start), jnp.asarray(size if count is None else count),
+        terms, _linkage(setup), jnp.asarray(size if count is None else count),
         size=size, fixed=count is None, tolerance=tolerance, max_passes=max_passes)
     out = {
         "deviation_pp": hi[0] - lo[0],
