@@ -150,17 +150,22 @@ class StageTables(eqx.Module):
     link_force: Array
 
 
-def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTables:
+def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period,
+              rigid_lanes: bool = False) -> StageTables:
     """:class:`StageTables` at the phases of ``rigid`` for a cycle of ``period`` T [s].
 
     One sample: ``period`` a scalar. A batch with its lanes last (as
     :mod:`jaxdobby.periodic.steady` runs one): ``period`` (B,), every leaf of ``arm`` and ``ds``
-    with a trailing lane axis, ``rigid`` shared by the lanes; every table then has the lanes
-    last, e.g. ``stiffness`` (..., k, k, B).
+    with a trailing lane axis, ``rigid`` shared by the lanes, or with ``rigid_lanes`` each
+    lane's own, its leaves with the trailing lane axis too (``phase`` (..., B), ``ring``
+    (..., 2, B)); every table then has the lanes last, e.g. ``stiffness`` (..., k, k, B).
     """
-    shape, lanes = rigid.phase.shape, jnp.shape(period)
+    lanes = jnp.shape(period)
+    shape = rigid.phase.shape[:rigid.phase.ndim - len(lanes)] if rigid_lanes else rigid.phase.shape
 
     def node(a):  # a rigid table, broadcast against the lanes
+        if rigid_lanes:
+            return a
         return jnp.broadcast_to(a.reshape(a.shape + (1,) * len(lanes)), shape + lanes)
 
     def per_node(a, axes=1):  # a lane quantity (k..., lanes) against the phases' axes
@@ -181,7 +186,7 @@ def tables_at(arm: ArmTerms, ds: Downstream, rigid: RigidArm, period) -> StageTa
     link_x, link_y = (jnp.take(link, i, axis=len(shape)) for i in (0, 1))
     g0 = arm.gravity
     field_x, field_y = -g0 * sin, -g0 * cos
-    n_x, n_y = node(rigid.ring[..., 0]), node(rigid.ring[..., 1])
+    n_x, n_y = (node(jnp.take(rigid.ring, i, axis=len(shape))) for i in (0, 1))
     coef = (jnp.ones(shape + lanes), omega**2, alpha, field_x, field_y, link_x, link_y, n_x**2,
             n_x * n_y, n_y**2)
     stiffness = sum(per_node(c, 2) * arm.stiffness[i] for i, c in enumerate(coef))
