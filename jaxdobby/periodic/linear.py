@@ -184,7 +184,7 @@ def _frozen_step(carry, mass, damp, stiff, forces, h, key):
     d ← Ψ d + c. Every array has its matrix axes first and any batch axes last (the unrolled
     products of :mod:`jaxdobby.periodic.collocation` then run over contiguous lanes)."""
     phi, d = carry
-    solver = gl.stored(gl.StageSolver(mass, damp, stiff, h), key)
+    solver = gl.stored(gl.StageSolver(mass, damp, stiff, h, key), key)
     psi = gl.stored(step_map(solver, damp, stiff, h), key)
     da = solver.solve(forces)
     c = jnp.concatenate([h**2 * gl.weigh(gl.WEIGHTS2, da), h * gl.weigh(gl.WEIGHTS, da)])
