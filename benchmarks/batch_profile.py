@@ -18,7 +18,7 @@ It also reports how many cycles the lanes needed: a vmapped while loop would int
 (chunk × the slowest lane's cycles), the rounds about the sum of the lanes' own.
 
 Run (alone on the machine; ``taskset -c 0`` pins it to one core):
-    python benchmarks/batch_profile.py [--chunk 32] [--quick]
+    python benchmarks/batch_profile.py [--chunk 64] [--quick]
 Writes ``benchmarks/results/batch_profile.json`` and ``.md``.
 """
 
@@ -45,8 +45,8 @@ from benchmarks._common import (
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--chunk", type=int, default=32,
-                    help="rows per chunk (default 32: what one device runs of a plain "
+    ap.add_argument("--chunk", type=int, default=64,
+                    help="rows per chunk (default 64: what one device runs of a plain "
                          "jaxdobby sobol's chunk, jaxdobby.sensitivity.batch.DEVICE_CHUNK)")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--widths", type=int, nargs="+", default=[8, 16, 32])

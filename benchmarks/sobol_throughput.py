@@ -5,7 +5,7 @@ Measures, on this machine, float64, compile time apart:
 * samples per second of :data:`jaxdobby.sensitivity.DOBBY` (steady-state metrics of the coupled
   model, :func:`jaxdobby.periodic.steady_state_metrics`, each row's steps per cycle by its
   speed and rows grouped by them into chunks, as the command runs it) over rows of the default
-  problem's Sobol design, in chunks of ``--chunk`` rows (default: the command's, 32 per device): in 1 and in 2 concurrent processes of one CPU device
+  problem's Sobol design, in chunks of ``--chunk`` rows (default: the command's, 64 per device): in 1 and in 2 concurrent processes of one CPU device
   each (each its share of the rows, timing started together after all have compiled), and in
   one process of 2 CPU devices (``shard_map``, what a plain ``jaxdobby sobol`` does on a 2-core
   machine); median of ``--repeats`` timed passes;
@@ -270,7 +270,7 @@ def main(argv=None):
                          "speeds give the command's mix of steps per cycle and chunk padding)")
     ap.add_argument("--chunk", type=int, default=None,
                     help="rows per chunk (default: a plain jaxdobby sobol's on that many devices, "
-                         "32 per device)")
+                         "64 per device)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-study", dest="study", action="store_false",
                     help="skip the full default study")

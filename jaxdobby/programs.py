@@ -41,19 +41,20 @@ code never uses (protection keys, cache control, transactional memory...:
 :data:`SYSTEM_FEATURES`) are marked off in the shipped files; an executable is loaded only on a
 CPU with all of its remaining ones (:func:`host_features`: the vector and bit-manipulation
 extensions, and family-specific ones such as AMD's ``sse4a``), and each program may ship in
-several *variants*, one per family of CPU it was compiled on (``<key>.<features>.xlaexe``: today
-an AMD EPYC of AVX2, which also fits the later AMD EPYCs with AVX-512, and, for the report, an
-Intel Xeon; ``jaxdobby optimize``'s were compiled on an AMD EPYC whose AVX2 level also has
-``avxvnni`` and ``gfni``, so they load only on such CPUs until another machine adds its
-variant). The Sobol study's chunk also ships compiled under :data:`WIDE_ISA` (AVX-512) where
+several *variants*, one per family of CPU it was compiled on (``<key>.<features>.xlaexe``).
+A variant is current only while its key is: whenever the programs change, every variant is
+compiled again, on the machine at hand. Today's were compiled on an Intel Xeon with AVX-512
+(family 6, model 167; 2026-12-07), whose AVX2 level also records ``avxvnni``, ``gfni`` and
+``avx10.1``, so they load only on such CPUs; an AMD EPYC (whose variants record ``sse4a``)
+compiles until a session on one adds its variants (``python -m jaxdobby.programs`` keeps the
+variants of other CPUs while their key is current). The Sobol study's chunk also ships compiled under :data:`WIDE_ISA` (AVX-512) where
 the shipping CPU has it, and a CPU that fits several variants loads the one of the most
 features (:func:`_load_first_fitting`). Elsewhere, or with
 ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as before. Python's
 :func:`jaxdobby.simulate.simulate` loads the run's executable too (its result's structure
 ships beside it, ``*.structure``: rebuilding it would mean tracing the run).
-Measured on 2 cores (AMD EPYC with AVX-512, 2026-12-06): a fresh ``jaxdobby simulate`` with an
-empty cache takes 1.8 s with them, 4.3 s compiling (on the Intel Xeon of 2026-12-05, 3.2 s and
-8.1 s).
+Measured on 2 cores: a fresh ``jaxdobby simulate`` with an empty cache takes 1.9 s with them,
+5.9 s compiling (Intel Xeon, 2026-12-07; an AMD EPYC with AVX-512, 2026-12-06: 1.8 and 4.3 s).
 """
 
 from __future__ import annotations

@@ -94,10 +94,13 @@ METRICS = ("deviation_pp", "deviation_max", "deviation_min", "velocity_deviation
 
 ROUND_WIDTH = 16
 """Lanes integrated per round of the batched chord iteration (:func:`_solve`); all of a
-smaller batch. A Sobol chunk gives each device 32 samples
-(:data:`jaxdobby.sensitivity.batch.DEVICE_CHUNK`), of which ~40 % need a third cycle: 16
-lanes per round measured 1.42–1.43 ms per sample against 1.48–1.50 with 32 (256 rows of
-650–1000 r/min in chunks of 32, one pinned core, 2026-12-07; 8: 1.43–1.44)."""
+smaller batch. A Sobol chunk gives each device 64 samples
+(:data:`jaxdobby.sensitivity.batch.DEVICE_CHUNK`), of which ~40 % need a third cycle.
+Measured with 32 per device (256 rows of 650–1000 r/min, one pinned core, AMD EPYC,
+2026-12-07, rounds copying their lanes' tables): 16 lanes per round 1.42–1.43 ms per sample,
+32 lanes 1.48–1.50, 8 lanes 1.43–1.44; with 64 per device and the rounds reading their lanes
+step by step (``benchmarks/sobol_throughput.py --chunk 128``, Intel Xeon, 2026-12-07): 16
+lanes 2140 and 2099 samples/s, 32 lanes 2260 and 1869, 64 lanes 2101."""
 
 FULL_CYCLES = 2
 """Cycles every sample integrates, converged or not (the batch integrates them for all its

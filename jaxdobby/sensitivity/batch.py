@@ -178,20 +178,29 @@ def chunk_key(stored: StoredModel, exported, share, devices: Sequence[jax.Device
     return executable_key(f"{stored.name}-chunk", exported, [share], setting)
 
 
-DEVICE_CHUNK = 32
+DEVICE_CHUNK = 64
 """Rows per device of a chunk when the command line sets none (``jaxdobby sobol``).
 
-XLA's CPU runtime allocates one temporary buffer per run of a chunk program, and the dobby's
-batch evaluator holds ~0.67 MB per sample in it (the rigid motion's tables at the 1296
-collocation nodes and the steps' inverted Newton matrices, each sample's own). glibc serves an
-allocation above 32 MB (its largest ``mmap`` threshold) with fresh pages on every run, which
-the kernel faults in and zeroes: measured (128 samples per device, one pinned core, AMD EPYC,
-2026-12-07) 20 880 page faults per run, 86 MB, and with them switched off
-(``GLIBC_TUNABLES=glibc.malloc.hugetlb=1:glibc.malloc.mmap_max=0``) 1.36 against 1.62 ms
-per sample at 432 steps. 32 samples per device keep the buffer below 32 MB, which glibc then
-reuses from run to run (no page fault in a run): ``benchmarks/sobol_throughput.py --chunk C``,
-one process of two devices, the default study's rows: 1067, 1219, 1296, 1061 and 945
-samples/s for C = 32, 48, 64, 128, 256."""
+Larger chunks share each step's fixed costs among more samples, until the chunk program's
+temporary buffer outgrows the CPU's caches and glibc's ``mmap`` threshold: XLA's CPU runtime
+allocates one temporary buffer per run of a chunk program, and the dobby's batch evaluator
+holds ~0.67 MB per sample in it (the rigid motion's tables at the 1296 collocation nodes and
+the steps' inverted Newton matrices, each sample's own). glibc serves an allocation above 32 MB
+(its largest ``mmap`` threshold) with fresh pages on every run, which the kernel faults in and
+zeroes (20 880 page faults per run at 128 samples per device). Measured with
+``benchmarks/sobol_throughput.py --chunk C``, one process of two devices, the default study's
+rows, steps by speed:
+
+* Intel Xeon (family 6, model 167), 2026-12-07, this code: 1970, 2223 and 1749 samples/s for
+  C = 64, 128, 192 (128 again 2140 and 2099 before the inversions of
+  :func:`jaxdobby.periodic.collocation.inverse` kept their eliminations, 64 then 1925).
+* AMD EPYC (family 25), 2026-12-07, the code before the tables of a sampled linkage were
+  built lanes last: 1067, 1219, 1296, 1061 and 945 samples/s for C = 32, 48, 64, 128, 256
+  (there 32 per device was best: 1.36 against 1.62 ms per sample at 128 per device with the
+  page faults switched off by ``GLIBC_TUNABLES=glibc.malloc.hugetlb=1:glibc.malloc.mmap_max=0``).
+
+The best chunk depends on the CPU (its caches, its cost of a page fault); 64 is this
+project's measured best of the machine where the targets are checked, ``--chunk`` sets another."""
 
 DEFAULT_CHUNK = 2 * DEVICE_CHUNK
 """Rows per chunk of :func:`evaluate` by default: :data:`DEVICE_CHUNK` on each of a 2-core
