@@ -47,12 +47,12 @@ compiled again, on the machine at hand. Today's were compiled on an Intel Xeon w
 (family 6, model 167; 2026-12-07), whose AVX2 level also records ``avxvnni``, ``gfni`` and
 ``avx10.1``, so they load only on such CPUs; an AMD EPYC (whose variants record ``sse4a``)
 compiles until a session on one adds its variants (``python -m jaxdobby.programs`` keeps the
-variants of other CPUs while their key is current). The Sobol study's chunk also ships compiled under :data:`WIDE_ISA` (AVX-512) where
-the shipping CPU has it, and a CPU that fits several variants loads the one of the most
-features (:func:`_load_first_fitting`). Elsewhere, or with
-``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as before. Python's
-:func:`jaxdobby.simulate.simulate` loads the run's executable too (its result's structure
-ships beside it, ``*.structure``: rebuilding it would mean tracing the run).
+variants of other CPUs while their key is current). The Sobol study's chunk also ships
+compiled under :data:`WIDE_ISA` (AVX-512) where the shipping CPU has it, and a CPU that fits
+several variants loads the one of the most features (:func:`_load_first_fitting`).
+Elsewhere, or with ``JAXDOBBY_SHIPPED_EXECUTABLES=off``, the programs compile as before.
+Python's :func:`jaxdobby.simulate.simulate` loads the run's executable too (its result's
+structure ships beside it, ``*.structure``: rebuilding it would mean tracing the run).
 Measured on 2 cores: a fresh ``jaxdobby simulate`` with an empty cache takes 1.9 s with them,
 5.9 s compiling (Intel Xeon, 2026-12-07; an AMD EPYC with AVX-512, 2026-12-06: 1.8 and 4.3 s).
 """
