@@ -508,14 +508,11 @@ def _solve(terms: Terms, linkage, count, *, size: int, fixed: bool, tolerance: f
             part, matrix, state = jax.tree.map(
                 lambda a: a[..., pick], (rest, chord_matrix, lanes))
 
-            def table_at(n):
-                return jax.tree.map(lambda a: a[n][..., pick], tables)
+            def step_of(tree):  # step n's rows of the W lanes
+                return lambda n: jax.tree.map(lambda a: a[n][..., pick], tree)
 
-            def solver_at(n):
-                return jax.tree.map(lambda a: a[n][..., pick], lin.solvers)
-
-            new = _chord_pass(part, solver_at, matrix, state, tables=table_at, count=count,
-                              steps=size)
+            new = _chord_pass(part, step_of(lin.solvers), matrix, state,
+                              tables=step_of(tables), count=count, steps=size)
             keep = todo[pick]
             return jax.tree.map(
                 lambda old, value: old.at[..., pick].set(jnp.where(keep, value, old[..., pick])),
