@@ -57,6 +57,16 @@ class Beam(eqx.Module):
         point_inertias: rotary inertia about the out-of-plane axis at each node [kg·m²],
             shape (n_nodes,).
         elements: static node pairs (i, j) of each element; default a chain 0-1-2-…
+        node_positions: body-frame positions of the nodes [m], shape (n_nodes, 2): the points
+            of ``centreline`` at ``node_arc_lengths``.
+        element_lengths, element_angles, element_mid_arc_lengths: each element's length [m],
+            axis angle from the body x axis [rad] and arc length of its middle [m], shape
+            (n_elements,).
+
+    The last four are found once, when the beam is made, from ``centreline``,
+    ``node_arc_lengths`` and ``elements``: every matrix needs them, and computed in each they
+    made up half of the traced model (:func:`jaxdobby.dobby.build_model`: 10,100 equations,
+    5,000 without), hence of what XLA compiles. A new centre line or mesh is a new ``Beam``.
     """
 
     centreline: CentreLine
@@ -69,6 +79,10 @@ class Beam(eqx.Module):
     point_masses: Array
     point_inertias: Array
     elements: tuple[tuple[int, int], ...] = eqx.field(static=True)
+    node_positions: Array
+    element_lengths: Array
+    element_angles: Array
+    element_mid_arc_lengths: Array
 
     def __init__(self, centreline, node_arc_lengths, thickness, depth, youngs_modulus, density,
                  *, depth_arc_lengths=None, point_masses=None, point_inertias=None, elements=None):
@@ -86,6 +100,13 @@ class Beam(eqx.Module):
         self.point_inertias = (jnp.zeros(n) if point_inertias is None
                                else jnp.asarray(point_inertias, dtype=float))
         self.elements = _chain(n) if elements is None else tuple(tuple(e) for e in elements)
+        self.node_positions = centreline.point(self.node_arc_lengths)
+        nodes = self._element_nodes()
+        d = self.node_positions[nodes[:, 1]] - self.node_positions[nodes[:, 0]]
+        self.element_lengths = jnp.linalg.norm(d, axis=1)
+        self.element_angles = jnp.arctan2(d[:, 1], d[:, 0])
+        s = self.node_arc_lengths
+        self.element_mid_arc_lengths = 0.5 * (s[nodes[:, 0]] + s[nodes[:, 1]])
 
     @classmethod
     def uniform_mesh(cls, centreline: CentreLine, n_elements: int, **kwargs) -> "Beam":
@@ -102,11 +123,6 @@ class Beam(eqx.Module):
     def n_dofs(self) -> int:
         return DOFS_PER_NODE * self.n_nodes
 
-    @property
-    def node_positions(self) -> Array:
-        """Body-frame positions of the nodes [m], shape (n_nodes, 2)."""
-        return self.centreline.point(self.node_arc_lengths)
-
     def _element_nodes(self) -> np.ndarray:
         return np.asarray(self.elements, dtype=np.int32).reshape(-1, 2)
 
@@ -118,13 +134,7 @@ class Beam(eqx.Module):
 
     def element_geometry(self):
         """Lengths [m], axis angles [rad] and mid arc lengths [m] of the elements."""
-        nodes = self._element_nodes()
-        x = self.node_positions
-        d = x[nodes[:, 1]] - x[nodes[:, 0]]
-        length = jnp.linalg.norm(d, axis=1)
-        angle = jnp.arctan2(d[:, 1], d[:, 0])
-        s = self.node_arc_lengths
-        return length, angle, 0.5 * (s[nodes[:, 0]] + s[nodes[:, 1]])
+        return self.element_lengths, self.element_angles, self.element_mid_arc_lengths
 
     def element_sections(self):
         """Area A [m²] and second moment I [m⁴] of each element's rectangular section."""
@@ -218,8 +228,9 @@ class Beam(eqx.Module):
     # -- points on the centre line -----------------------------------------------------------
     def _locate(self, arc_length):
         """Element index and ξ of the point at arc length ``arc_length`` (chain meshes)."""
-        s = self.node_arc_lengths
-        e = jnp.clip(jnp.searchsorted(s, arc_length, side="right") - 1, 0, self.n_nodes - 2)
+        s = self.node_arc_lengths  # a dozen nodes: compared with each, no search loop
+        e = jnp.clip(jnp.searchsorted(s, arc_length, side="right", method="compare_all") - 1,
+                     0, self.n_nodes - 2)
         xi = (arc_length - s[e]) / (s[e + 1] - s[e])
         return e, xi
 

@@ -15,13 +15,18 @@ k² entries, each an array over the batch, so every operation runs over the whol
   (§8.5.3), and Jacobi's eigenvalues are accurate to round-off relative to the matrix's
   norm (Demmel & Veselić 1992 show better).
 
-The unrolled program grows as sweeps · k³, so this is for small k only (:data:`MAX_MODES`).
+One sweep is unrolled (k(k−1)/2 rotations of O(k) operations each: the program grows as k³,
+so this is for small k only, :data:`MAX_MODES`); the sweeps are a loop over it. Unrolled
+sweeps gave the same numbers bit for bit, but LLVM's time grew much faster than the program:
+compiling k = 6 alone took 36 s on 2 cores, against 1.7 s with the loop (k = 4: 2.3 against
+0.2 s), and a batch of 3000 ran no slower in the loop (14 against 15 ms).
 """
 
 from __future__ import annotations
 
 import itertools
 
+import jax
 import jax.numpy as jnp
 from jax import Array
 
@@ -56,12 +61,16 @@ def _entries(a: Array) -> list[list[Array]]:
 
 def _jacobi(a: list[list[Array]]) -> Array:
     """Eigenvalues, ascending, of a symmetric matrix given as its entries (the upper triangle
-    is read), by :data:`SWEEPS` cyclic Jacobi sweeps."""
+    is read), by :data:`SWEEPS` cyclic Jacobi sweeps (a loop over one unrolled sweep)."""
     k = len(a)
     a = [[a[min(i, j)][max(i, j)] for j in range(k)] for i in range(k)]
-    for _ in range(SWEEPS):
+
+    def sweep(_, a):
         for p, q in itertools.combinations(range(k), 2):
             a = _rotate(a, p, q)
+        return a
+
+    a = jax.lax.fori_loop(0, SWEEPS, sweep, a)
     return jnp.sort(jnp.stack([a[i][i] for i in range(k)], axis=-1), axis=-1)
 
 
