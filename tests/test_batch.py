@@ -222,7 +222,30 @@ def test_two_newton_iterations_per_step_converge_the_cycle():
     np.testing.assert_allclose(got[:, 0], got[:, 1], rtol=1e-6, atol=0)
 
 
-def test_vmap_equals_single_samples_and_failures_are_flagged(monkeypatch):
+@pytest.fixture(scope="module")
+def batch_144():
+    """The batch evaluator on 12 lanes at 144 steps per cycle (cheap), compiled once for the two
+    tests below that hold it against other code: with ROUND_WIDTH 3 (a round takes part of the
+    lanes) and the machine's part of the model counted at run time as it is built (``builds``,
+    one entry per build)."""
+    from jaxdobby.periodic import steady
+
+    builds = []
+    parts = steady.machine_parts
+
+    def counted(machine):
+        jax.debug.callback(lambda: builds.append(1))
+        return parts(machine)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(steady, "ROUND_WIDTH", 3)
+        patch.setattr(steady, "machine_parts", counted)
+        batch = jax.jit(jax.vmap(lambda r: steady_state_metrics(setup_at(r), steps=144)))
+        program = batch.lower(jax.ShapeDtypeStruct((12, 4), jnp.float64)).compile()
+    return program, builds
+
+
+def test_vmap_equals_single_samples_and_failures_are_flagged(monkeypatch, batch_144):
     """The batched chord iteration integrates only pending lanes, ROUND_WIDTH of them per round
     (jaxdobby.periodic.steady._settle; 3 here, so that a round takes part of the 9 lanes): each
     lane must get the cycle count, the flag and the metrics it gets alone (the per-sample while
@@ -261,9 +284,10 @@ def test_vmap_equals_single_samples_and_failures_are_flagged(monkeypatch):
     def one(r):
         return steady_state_metrics(setup_at(r), steps=144)
 
-    batched = jax.block_until_ready(jax.jit(jax.vmap(one))(rows))
-    assert len(builds) == 9
-    builds.clear()
+    program, batch_builds = batch_144
+    batch_builds.clear()
+    batched = jax.block_until_ready(program(rows))
+    assert len(batch_builds) == 9
     alone = jax.block_until_ready(jax.jit(lambda rs: jax.lax.map(one, rs))(rows))
     assert len(builds) == 12
     cycles = np.asarray(batched["cycles"])
@@ -309,14 +333,15 @@ def test_a_sampled_linkage_gives_each_lane_its_own_rigid_motion(monkeypatch):
         np.testing.assert_allclose(batched[name], alone[name], rtol=1e-10, err_msg=name)
 
 
-def test_steps_by_speed_integrate_the_most_steps_any_lane_needs(monkeypatch):
+def test_steps_by_speed_integrate_the_most_steps_any_lane_needs(monkeypatch, batch_144):
     """``steps="speed"`` (what a Sobol chunk runs): each sample's steps per cycle from its speed
     (jaxdobby.periodic.steady.STEPS_BY_SPEED), a batch integrating its lanes' most in loops of a
     run-time length over tables of a fixed size. Held against the scans of a fixed step count
     (the code every other test checks), on a coarse table (216 and 144 steps, cheaper): a batch
-    of fast rows equals the fixed 144-step batch, a batch with slow rows the fixed 216-step one
-    (to 1e-10, as the lanes against their solves alone above: the same arithmetic, other
-    loops), and the table's thresholds are where it says."""
+    of fast rows equals the fixed 144-step batch (the one compiled for the test above), a batch
+    with slow rows the fixed 216-step one (to 1e-10, as the lanes against their solves alone
+    above: the same arithmetic, other loops), and the table's thresholds are where it says.
+    Batches of 12 lanes, the size of the fixed 144-step program."""
     from jaxdobby.periodic import steady
 
     monkeypatch.setattr(steady, "DEFAULT_STEPS", 216)
@@ -324,20 +349,18 @@ def test_steps_by_speed_integrate_the_most_steps_any_lane_needs(monkeypatch):
     slow = [[500 * RPM, 400.0, 0.100, 0.007], [650 * RPM, 900.0, 0.130, 0.0065]]
     fast = [[900 * RPM, 600.0, 0.090, 0.0075], [1150 * RPM, 1000.0, 0.120, 0.006]]
 
-    programs = {}  # one program per step setting: "speed" serves both batches
+    def batch(steps):
+        return jax.jit(jax.vmap(lambda r: steady_state_metrics(setup_at(r), steps=steps)))
 
-    def run(steps, rows):
-        if steps not in programs:
-            programs[steps] = jax.jit(jax.vmap(
-                lambda r: steady_state_metrics(setup_at(r), steps=steps)))
-        return programs[steps](jnp.asarray(rows))
-
-    for rows, fixed in ((fast + fast, 144), (slow + fast, 216)):
-        by_speed, reference = run("speed", rows), run(fixed, rows)
-        assert np.asarray(by_speed["ok"]).all()
-        assert np.asarray(by_speed["cycles"]).tolist() == np.asarray(reference["cycles"]).tolist()
+    by_speed = batch("speed")  # one program serves both batches
+    for rows, reference in ((fast * 6, batch_144[0]), ((slow + fast) * 3, batch(216))):
+        rows = jnp.asarray(rows)
+        got, want = by_speed(rows), reference(rows)
+        fixed = 144 if reference is batch_144[0] else 216
+        assert np.asarray(got["ok"]).all()
+        assert np.asarray(got["cycles"]).tolist() == np.asarray(want["cycles"]).tolist()
         for name in METRICS:
-            np.testing.assert_allclose(by_speed[name], reference[name], rtol=1e-10,
+            np.testing.assert_allclose(got[name], want[name], rtol=1e-10,
                                        err_msg=f"{name}, {fixed} steps")
     speeds = jnp.asarray([699.9, 700.0, 1200.0]) * RPM
     assert steady.steps_for_speed(speeds).tolist() == [216, 144, 144]
