@@ -222,6 +222,19 @@ def test_two_newton_iterations_per_step_converge_the_cycle():
     np.testing.assert_allclose(got[:, 0], got[:, 1], rtol=1e-6, atol=0)
 
 
+def counted_builds(steady):
+    """(builds, wrapper): a stand-in for steady.machine_parts that appends to ``builds`` at
+    run time each time the machine's part of the model is built."""
+    builds = []
+    parts = steady.machine_parts
+
+    def counted(machine):
+        jax.debug.callback(lambda: builds.append(1))
+        return parts(machine)
+
+    return builds, counted
+
+
 @pytest.fixture(scope="module")
 def batch_144():
     """The batch evaluator on 12 lanes at 144 steps per cycle (cheap), compiled once for the two
@@ -230,13 +243,7 @@ def batch_144():
     one entry per build)."""
     from jaxdobby.periodic import steady
 
-    builds = []
-    parts = steady.machine_parts
-
-    def counted(machine):
-        jax.debug.callback(lambda: builds.append(1))
-        return parts(machine)
-
+    builds, counted = counted_builds(steady)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(steady, "ROUND_WIDTH", 3)
         patch.setattr(steady, "machine_parts", counted)
@@ -265,13 +272,7 @@ def test_vmap_equals_single_samples_and_failures_are_flagged(monkeypatch, batch_
     from jaxdobby.periodic import steady
 
     monkeypatch.setattr(steady, "ROUND_WIDTH", 3)
-    builds = []
-    parts = steady.machine_parts
-
-    def counted(machine):
-        jax.debug.callback(lambda: builds.append(1))
-        return parts(machine)
-
+    builds, counted = counted_builds(steady)
     monkeypatch.setattr(steady, "machine_parts", counted)
     rng = np.random.default_rng(1)
     lo = np.array([400 * RPM, 345.0, 0.080, 0.006])
@@ -353,10 +354,10 @@ def test_steps_by_speed_integrate_the_most_steps_any_lane_needs(monkeypatch, bat
         return jax.jit(jax.vmap(lambda r: steady_state_metrics(setup_at(r), steps=steps)))
 
     by_speed = batch("speed")  # one program serves both batches
-    for rows, reference in ((fast * 6, batch_144[0]), ((slow + fast) * 3, batch(216))):
+    for rows, fixed, reference in ((fast * 6, 144, batch_144[0]),
+                                   ((slow + fast) * 3, 216, batch(216))):
         rows = jnp.asarray(rows)
         got, want = by_speed(rows), reference(rows)
-        fixed = 144 if reference is batch_144[0] else 216
         assert np.asarray(got["ok"]).all()
         assert np.asarray(got["cycles"]).tolist() == np.asarray(want["cycles"]).tolist()
         for name in METRICS:
